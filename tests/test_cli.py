@@ -1,0 +1,40 @@
+"""The command line: help lists every DESIGN.md command, unbuilt commands fail loudly."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from susp_bo import __version__
+from susp_bo.cli import build_parser, main
+
+COMMANDS = ("demo", "simulate", "synth", "calibrate", "diagnose")
+
+
+def test_help_lists_every_command() -> None:
+    text = build_parser().format_help()
+    for command in COMMANDS:
+        assert command in text
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main([command, "--help"])
+    assert exit_info.value.code == 0
+    assert "usage: susp-bo " + command in capsys.readouterr().out
+
+
+def test_no_command_prints_help_and_fails(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([]) == 2
+    assert "COMMAND" in capsys.readouterr().err
+
+
+def test_python_dash_m_runs_the_same_cli() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "susp_bo", "--version"], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0
+    assert __version__ in done.stdout
