@@ -37,6 +37,24 @@ def _demo(args: argparse.Namespace) -> int:
     return run_demo(out=args.out, smoke=args.smoke, seed=args.seed)
 
 
+def _simulate(args: argparse.Namespace) -> int:
+    from susp_bo.commands.simulate import run_simulate
+
+    return run_simulate(args)
+
+
+def _synth(args: argparse.Namespace) -> int:
+    from susp_bo.commands.synth import run_synth
+
+    return run_synth(args)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from susp_bo.commands.calibrate import run_calibrate
+
+    return run_calibrate(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every command of DESIGN.md."""
     parser = argparse.ArgumentParser(
@@ -68,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--speed", type=float, help="speed in m/s")
     simulate.add_argument("--duration", type=float, help="simulated time in s")
     simulate.add_argument("--seed", type=int, default=0)
-    simulate.set_defaults(handler=_not_built("simulate", "issue 6, vehicle rig"))
+    simulate.set_defaults(handler=_simulate)
 
     synth = sub.add_parser(
         "synth", help="synthetic measured runs from a rig, in the measured-data format"
@@ -81,7 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--nu", type=int, default=3, help="number of measured runs")
     synth.add_argument("--seed", type=int, default=0)
     synth.add_argument("--noise", type=float, default=0.0, help="sensor noise, m/s^2 rms")
-    synth.set_defaults(handler=_not_built("synth", "issue 5, measured-data format"))
+    synth.set_defaults(handler=_synth)
 
     calibrate = sub.add_parser("calibrate", help="the four steps: design, kriging, EGO, MCMC")
     calibrate.add_argument("rig_or_study", help="rig name/path, or a study .toml")
@@ -94,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_argument(
         "--resume", action="store_true", help="reuse the study's evaluation store"
     )
-    calibrate.set_defaults(handler=_not_built("calibrate", "issue 3, calibration"))
+    calibrate.set_defaults(handler=_calibrate)
 
     diagnose = sub.add_parser("diagnose", help="model-discrepancy workflow on a calibration result")
     diagnose.add_argument("result_dir")

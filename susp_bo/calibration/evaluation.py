@@ -1,0 +1,192 @@
+"""log L(w) from simulator runs: the ``evaluate`` function the calibration loop calls.
+
+For a batch of parameter vectors ``W`` (b x q) the evaluator needs the spectra
+``h(x_j, w)`` of every vector on every measured track stretch ``x_j``
+(j = 1..μ). Each (w, x_j) pair is one simulator evaluation: it is looked up in
+the study's :class:`~susp_bo.store.EvaluationStore` first (a resumed study
+reuses what finished), the missing ones run together on the study's executor
+(so an EGO batch fills every worker), and each is recorded in the store the
+moment it completes. A vector whose evaluations all succeeded gets
+``log L`` of eq. 4 against the measured spectra; a vector with a failed
+evaluation (diverged simulation, crashed worker) gets NaN, which the
+calibration loop treats as a failed point — the study goes on.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass
+
+import numpy as np
+
+from susp_bo.calibration.likelihood import OutputError, log_likelihood
+from susp_bo.execution import TaskOutcome, run_tasks
+from susp_bo.rig.simulator import Rig
+from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.track import SpeedProfile, TrackGeometry
+from susp_bo.store import EvaluationStore
+
+
+@dataclass(frozen=True)
+class TrackRun:
+    """One track stretch x_j: its geometry and the speed the train ran it at.
+
+    Attributes:
+        track_id: stable id (recorded in the store with every evaluation).
+        geometry: track irregularities sampled in space.
+        speed: speed record of the run.
+    """
+
+    track_id: str
+    geometry: TrackGeometry
+    speed: SpeedProfile
+
+
+class _RigCache(threading.local):
+    """One :class:`Rig` (one PyBullet client) per rig spec, per worker thread.
+
+    Thread-local, because a Dask worker may run several tasks in threads of one
+    process and a PyBullet client must not be stepped by two threads at once.
+    """
+
+    def __init__(self) -> None:
+        self._rigs: dict[str, Rig] = {}
+
+    def rig(self, spec: RigSpec) -> Rig:
+        key = spec.fingerprint()
+        if key not in self._rigs:
+            self._rigs[key] = Rig(spec)
+        return self._rigs[key]
+
+
+_WORKER_RIGS = _RigCache()
+
+
+def simulate_spectra(
+    spec: RigSpec, parameters: Mapping[str, float], geometry: TrackGeometry, speed: SpeedProfile
+) -> np.ndarray:
+    """One simulator evaluation h(x, w): the rig's log-amplitude spectra (C x F).
+
+    A top-level function so that worker processes (and Dask workers) import it
+    by name; each worker keeps its own rig (PyBullet client) between calls.
+
+    Raises:
+        SimulationFailed: the simulation diverged (recorded as a failed evaluation).
+    """
+    spectra = _WORKER_RIGS.rig(spec).spectra(geometry, speed, dict(parameters))
+    return np.asarray(spectra.log_amplitude, dtype=np.float64)
+
+
+class LikelihoodEvaluator:
+    """``evaluate(W) -> log L`` for the calibration loop, backed by the store and an executor.
+
+    Args:
+        spec: the rig being calibrated (its non-calibrated parameters stay fixed).
+        names: calibration parameter names, in the order of the columns of W.
+        tracks: the μ measured track stretches x_j.
+        measured: (ν x C x F) measured log-amplitude spectra.
+        error: the output error model B.
+        store: where every evaluation is recorded and looked up.
+        executor: where simulations run.
+        frequencies_hz: (F,) grid of the spectra.
+        progress: show a tqdm bar per batch of simulations.
+    """
+
+    def __init__(
+        self,
+        spec: RigSpec,
+        names: Sequence[str],
+        tracks: Sequence[TrackRun],
+        measured: np.ndarray,
+        error: OutputError,
+        store: EvaluationStore,
+        executor: Executor,
+        frequencies_hz: np.ndarray,
+        progress: bool = True,
+    ) -> None:
+        self.spec = spec
+        self.names = tuple(names)
+        self.tracks = tuple(tracks)
+        self.measured = np.asarray(measured, dtype=np.float64)
+        self.error = error
+        self.store = store
+        self.executor = executor
+        self.frequencies_hz = np.asarray(frequencies_hz, dtype=np.float64)
+        self.progress = progress
+        self.simulations_run = 0
+        self.simulations_reused = 0
+        self.failures: list[str] = []
+
+    def spectra_of(self, W: np.ndarray) -> list[list[np.ndarray | None]]:
+        """Spectra of every row of ``W`` on every track, running only what is missing.
+
+        Args:
+            W: (b x q) parameter vectors, physical units.
+
+        Returns:
+            ``b`` lists of ``μ`` arrays (C x F), None where the evaluation failed.
+        """
+        W = np.atleast_2d(np.asarray(W, dtype=np.float64))
+        found: dict[tuple[int, int], np.ndarray | None] = {}
+        missing: list[tuple[int, int]] = []
+        for row, w in enumerate(W):
+            for column, track in enumerate(self.tracks):
+                recorded = self.store.lookup(w, track.track_id)
+                if recorded is None:
+                    missing.append((row, column))
+                else:
+                    found[row, column] = recorded.spectra if recorded.ok else None
+        self.simulations_reused += len(found)
+        if missing:
+            tasks = [
+                (
+                    self.spec,
+                    dict(zip(self.names, W[row].tolist())),
+                    self.tracks[column].geometry,
+                    self.tracks[column].speed,
+                )
+                for row, column in missing
+            ]
+
+            def record(outcome: TaskOutcome) -> None:
+                row, column = missing[outcome.index]
+                track_id = self.tracks[column].track_id
+                if outcome.ok:
+                    self.store.record_ok(W[row], track_id, outcome.value, outcome.seconds)
+                else:
+                    self.store.record_failure(
+                        W[row],
+                        track_id,
+                        outcome.reason or "unknown failure",
+                        outcome.seconds,
+                        kind=outcome.failure_kind or "error",
+                    )
+                    self.failures.append(f"{dict(zip(self.names, W[row]))}: {outcome.reason}")
+
+            outcomes = run_tasks(
+                self.executor,
+                simulate_spectra,
+                tasks,
+                on_result=record,
+                desc="simulations",
+                progress=self.progress,
+            )
+            self.simulations_run += len(missing)
+            for (row, column), outcome in zip(missing, outcomes):
+                found[row, column] = np.asarray(outcome.value) if outcome.ok else None
+        return [[found[row, column] for column in range(len(self.tracks))] for row in range(len(W))]
+
+    def __call__(self, W: np.ndarray) -> np.ndarray:
+        """log L of eq. 4 for each row of W (b,), NaN where an evaluation failed."""
+        values = []
+        for spectra in self.spectra_of(W):
+            if any(s is None for s in spectra):
+                values.append(np.nan)
+                continue
+            simulated = np.stack([np.asarray(s) for s in spectra])
+            values.append(
+                float(log_likelihood(self.measured, simulated, self.error, self.frequencies_hz))
+            )
+        return np.asarray(values, dtype=np.float64)

@@ -1,0 +1,343 @@
+"""The four steps of the paper (section 3.1) as one driver: :func:`calibrate`.
+
+1. space-filling design of C_w (:mod:`.design`);
+2. kriging of log L, refitted after every batch (:mod:`.surrogate`);
+3. refinement in batches of ``batch_size`` points (simulator calls run in parallel):
+   a. EGO with qLogEI until the stopping rule — batch EI below ``ei_tolerance`` x
+      the spread (sd) of the observed latent log L — or until EGO has used
+      ``max_ego_fraction`` of the evaluations left after the design;
+   b. posterior refinement (:func:`.acquisition.select_uncertainty_batch`) until the
+      posterior mean of sd[log L̃] falls below ``refine_tolerance`` nats;
+   both within the budget ``max_evaluations``;
+4. MH sampling of the surrogate posterior and summaries (:mod:`.mcmc`, :mod:`.posterior`).
+
+Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
+for the surrogate they are imputed with the lowest finite log L observed so far
+(recomputed at every refit), which steers the search away from them without
+inventing structure below the data. If the whole initial design fails,
+``RuntimeError`` is raised.
+
+Determinism: every random choice (design scrambling, acquisition restarts, QMC
+samplers, hyperparameter restarts, MCMC) is seeded from ``settings.seed`` and the
+iteration number, and runs under ``torch.random.fork_rng`` (no global state is
+changed). Given the same seed and the same ``evaluate`` results (e.g. replayed from
+a cache), a rerun reproduces the result exactly.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from susp_bo.calibration.acquisition import propose_ei_batch, select_uncertainty_batch
+from susp_bo.calibration.design import (
+    DesignMethod,
+    check_bounds,
+    default_design_size,
+    from_unit,
+    space_filling_design,
+    to_unit,
+)
+from susp_bo.calibration.posterior import PosteriorSummary, summarize
+from susp_bo.calibration.sampling import (
+    Backend,
+    Estimator,
+    sample_surrogate_posterior,
+    surrogate_log_likelihood,
+)
+from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings, fit_surrogate
+
+logger = logging.getLogger(__name__)
+
+Evaluate = Callable[[np.ndarray], np.ndarray]
+Phase = Literal["design", "ego", "refine"]
+_FINAL = 1_000_000  # iteration index used to seed the final fit and MCMC
+
+
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """Settings of :func:`calibrate` (defaults suit q ≈ 2–10).
+
+    Args:
+        seed: master seed.
+        batch_size: points proposed per iteration (parallel simulator calls), >= 1.
+        max_evaluations: budget of log L evaluations, design included; None = 50 (q + 2).
+        initial_design_size: design size; None = max(10, 5 q).
+        design_method: "sobol" or "lhs".
+        surrogate: GP settings (output warping etc.).
+        ei_tolerance: EGO stops when batch EI / sd(latent log L) < this (> 0).
+        max_ego_fraction: share of the post-design budget EGO may use, in [0, 1].
+        refine: run the posterior-refinement phase after EGO.
+        refine_tolerance: refinement stops when the posterior mean of sd[log L̃] < this (nats).
+        estimator: L̃ used by MCMC: "plug_in", "mean_log" or "expected" (paper's E[L̃]).
+        mcmc_chains: chains of the final MCMC (vectorised in one kernel step).
+        mcmc_warmup: warm-up (adaptation) steps per chain.
+        mcmc_samples: kept steps per chain.
+        mcmc_backend: "vectorized" (plain torch loop) or "pyro" (pyro.infer.MCMC); same draws.
+        candidate_count: posterior candidates scored per refinement batch (and as many widened).
+        acquisition_restarts: restarts of the qLogEI optimisation.
+        acquisition_raw_samples: raw samples for the qLogEI restarts.
+    """
+
+    seed: int = 0
+    batch_size: int = 4
+    max_evaluations: int | None = None
+    initial_design_size: int | None = None
+    design_method: DesignMethod = "sobol"
+    surrogate: SurrogateSettings = field(default_factory=SurrogateSettings)
+    ei_tolerance: float = 1e-3
+    max_ego_fraction: float = 0.4
+    refine: bool = True
+    refine_tolerance: float = 0.02
+    estimator: Estimator = "plug_in"
+    mcmc_chains: int = 64
+    mcmc_warmup: int = 1000
+    mcmc_samples: int = 1500
+    mcmc_backend: Backend = "vectorized"
+    candidate_count: int = 512
+    acquisition_restarts: int = 6
+    acquisition_raw_samples: int = 256
+
+    def __post_init__(self) -> None:
+        positive = {
+            "batch_size": self.batch_size,
+            "mcmc_chains": self.mcmc_chains,
+            "mcmc_samples": self.mcmc_samples,
+            "candidate_count": self.candidate_count,
+            "acquisition_restarts": self.acquisition_restarts,
+            "acquisition_raw_samples": self.acquisition_raw_samples,
+        }
+        for name, value in positive.items():
+            if int(value) != value or value < 1:
+                raise ValueError(f"{name}: {value} must be an integer >= 1")
+        for name in ("max_evaluations", "initial_design_size"):
+            v = getattr(self, name)
+            if v is not None and (int(v) != v or v < 2):
+                raise ValueError(f"{name}: {v} must be None or an integer >= 2")
+        if self.mcmc_warmup < 0:
+            raise ValueError(f"mcmc_warmup: {self.mcmc_warmup} must be >= 0")
+        if not self.ei_tolerance > 0.0:
+            raise ValueError(f"ei_tolerance: {self.ei_tolerance} must be > 0")
+        if not self.refine_tolerance > 0.0:
+            raise ValueError(f"refine_tolerance: {self.refine_tolerance} must be > 0 nats")
+        if not 0.0 <= self.max_ego_fraction <= 1.0:
+            raise ValueError(f"max_ego_fraction: {self.max_ego_fraction} must be in [0, 1]")
+        if self.design_method not in ("sobol", "lhs"):
+            raise ValueError(f"design_method: {self.design_method!r}, expected 'sobol' or 'lhs'")
+        if self.estimator not in ("plug_in", "mean_log", "expected"):
+            raise ValueError(f"estimator: {self.estimator!r}, expected plug_in/mean_log/expected")
+        if self.mcmc_backend not in ("vectorized", "pyro"):
+            raise ValueError(f"mcmc_backend: {self.mcmc_backend!r}, expected vectorized/pyro")
+
+
+@dataclass(frozen=True)
+class IterationReport:
+    """One refinement iteration, passed to ``on_iteration`` and logged as one line."""
+
+    iteration: int
+    phase: Phase
+    n_evaluations: int
+    best_log_likelihood: float
+    best_parameters: np.ndarray
+    criterion: float
+    n_failed: int
+
+    def line(self) -> str:
+        """One-line summary."""
+        name = "EI/spread" if self.phase == "ego" else "post. sd[log L]"
+        return (
+            f"iter {self.iteration:3d} [{self.phase}] evaluations {self.n_evaluations}"
+            f" best log L {self.best_log_likelihood:.6g} {name} {self.criterion:.3g}"
+            f" failed {self.n_failed}"
+        )
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Result of :func:`calibrate`.
+
+    Attributes:
+        names: (q,) parameter names.
+        bounds: (2 x q) bounds of C_w.
+        X: (n x q) evaluated parameters, physical units, in evaluation order.
+        y: (n,) log L values as returned (NaN = failed).
+        surrogate: the final fitted surrogate (unit-cube inputs).
+        draws: (n_chains x n_draws x q) posterior draws, physical units.
+        summary: posterior summary (physical units).
+        n_evaluations: number of log L evaluations.
+        stop_reason: "budget", "converged" or "ego_converged" (no refinement).
+        history: one report per refinement iteration.
+        mcmc: kernel diagnostics of the final run (acceptance rate, scale).
+    """
+
+    names: tuple[str, ...]
+    bounds: np.ndarray
+    X: np.ndarray
+    y: np.ndarray
+    surrogate: Surrogate
+    draws: np.ndarray
+    summary: PosteriorSummary
+    n_evaluations: int
+    stop_reason: str
+    history: tuple[IterationReport, ...]
+    mcmc: dict[str, float]
+
+    @property
+    def samples(self) -> np.ndarray:
+        """Posterior draws pooled over chains, (draws x q), physical units."""
+        return self.draws.reshape(-1, self.draws.shape[-1])
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (physical units)."""
+        out = self.summary.to_dict()
+        out.update(
+            bounds=self.bounds.tolist(),
+            n_evaluations=int(self.n_evaluations),
+            n_failed=int(np.sum(~np.isfinite(self.y))),
+            stop_reason=self.stop_reason,
+            mcmc=dict(self.mcmc),
+        )
+        return out
+
+
+def _seed(master: int, iteration: int, purpose: int) -> int:
+    return int(np.random.SeedSequence([master, iteration, purpose]).generate_state(1)[0])
+
+
+def _impute(y: np.ndarray) -> np.ndarray:
+    finite = np.isfinite(y)
+    if not finite.any():
+        raise RuntimeError("every log L evaluation failed (NaN/-inf): nothing to fit")
+    if np.any(y == math.inf):
+        raise ValueError("evaluate: returned +inf, which is not a valid log-likelihood")
+    return np.where(finite, y, np.min(y[finite]))
+
+
+def _evaluate(evaluate: Evaluate, w: np.ndarray) -> np.ndarray:
+    out = np.asarray(evaluate(np.array(w, dtype=np.float64)), dtype=np.float64).reshape(-1)
+    if out.shape != (w.shape[0],):
+        raise ValueError(f"evaluate: returned shape {out.shape}, expected ({w.shape[0]},)")
+    return np.where(out == -math.inf, np.nan, out)
+
+
+def _refinement_candidates(
+    surrogate: Surrogate, settings: CalibrationSettings, seed: int
+) -> tuple[torch.Tensor, int]:
+    """Posterior draws of the current surrogate plus a widened copy (unit cube)."""
+    m = settings.candidate_count
+    chains = 32
+    steps = max(1, math.ceil(2 * m / chains))
+    draws, _ = sample_surrogate_posterior(
+        surrogate, n_chains=chains, warmup_steps=300, num_samples=steps, seed=seed,
+        estimator=settings.estimator,
+    )
+    flat = draws.transpose(0, 1).reshape(-1, surrogate.dim)
+    gen = torch.Generator().manual_seed(seed)
+    pick = torch.randperm(flat.shape[0], generator=gen)[: 2 * m]
+    post, wide = flat[pick[:m]], flat[pick[m:]]
+    sd = flat.std(0).clamp_min(1e-3)
+    wide = (wide + sd * torch.randn(wide.shape, generator=gen, dtype=torch.float64)).clamp(0, 1)
+    return torch.cat([post, wide]), post.shape[0]
+
+
+def calibrate(
+    evaluate: Evaluate,
+    bounds: np.ndarray,
+    names: Sequence[str],
+    settings: CalibrationSettings | None = None,
+    progress: bool = True,
+    on_iteration: Callable[[IterationReport], None] | None = None,
+) -> CalibrationResult:
+    """Bayesian calibration of w on C_w from log L evaluations (the paper's four steps).
+
+    Args:
+        evaluate: maps W (b x q, physical units) to (b,) log L; NaN marks a failed run.
+            Called with whole batches (the design, then ``batch_size`` points).
+        bounds: (2 x q) lower/upper bounds of C_w (uniform prior).
+        names: (q,) parameter names.
+        settings: calibration settings (defaults if None).
+        progress: show a tqdm bar of evaluations on stderr.
+        on_iteration: called with an :class:`IterationReport` after every batch.
+
+    Returns:
+        The :class:`CalibrationResult`.
+    """
+    settings = settings or CalibrationSettings()
+    b = check_bounds(bounds)
+    q = b.shape[1]
+    if len(names) != q:
+        raise ValueError(f"names: {len(names)} names for q = {q} parameters")
+    budget = settings.max_evaluations or 50 * (q + 2)
+    n0 = min(settings.initial_design_size or default_design_size(q), budget)
+    bar = tqdm(total=budget, file=sys.stderr, disable=not progress, desc="log L evaluations")
+    x = space_filling_design(n0, b, _seed(settings.seed, 0, 0), settings.design_method)
+    y = _evaluate(evaluate, x)
+    bar.update(n0)
+    phase: Phase = "ego"
+    ego_cap = n0 + int(settings.max_ego_fraction * (budget - n0))
+    history: list[IterationReport] = []
+    stop_reason = "budget"
+    iteration = 0
+    while x.shape[0] < budget:
+        iteration += 1
+        y_fit = _impute(y)
+        surrogate = fit_surrogate(to_unit(x, b), y_fit, settings.surrogate, _seed(settings.seed, iteration, 1))
+        size = min(settings.batch_size, budget - x.shape[0])
+        proposal = None
+        if phase == "ego":
+            u, criterion = propose_ei_batch(
+                surrogate, size, _seed(settings.seed, iteration, 2),
+                settings.acquisition_restarts, settings.acquisition_raw_samples,
+            )
+            if criterion < settings.ei_tolerance or x.shape[0] >= ego_cap:
+                phase = "refine"
+                if not settings.refine:
+                    stop_reason = "ego_converged" if criterion < settings.ei_tolerance else "budget"
+                    break
+            else:
+                proposal = u
+        if phase == "refine":
+            candidates, n_post = _refinement_candidates(
+                surrogate, settings, _seed(settings.seed, iteration, 3)
+            )
+            proposal, criterion = select_uncertainty_batch(surrogate, candidates, size, n_post)
+            if criterion < settings.refine_tolerance:
+                stop_reason = "converged"
+                break
+        w_new = from_unit(proposal.numpy(), b)
+        y_new = _evaluate(evaluate, w_new)
+        x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
+        bar.update(size)
+        best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
+        report = IterationReport(
+            iteration, phase, x.shape[0], float(y[best]), x[best].copy(), float(criterion),
+            int(np.sum(~np.isfinite(y))),
+        )
+        history.append(report)
+        logger.info(report.line())
+        if on_iteration is not None:
+            on_iteration(report)
+    bar.close()
+    y_fit = _impute(y)
+    surrogate = fit_surrogate(to_unit(x, b), y_fit, settings.surrogate, _seed(settings.seed, _FINAL, 1))
+    draws_u, diag = sample_surrogate_posterior(
+        surrogate, n_chains=settings.mcmc_chains, warmup_steps=settings.mcmc_warmup,
+        num_samples=settings.mcmc_samples, seed=_seed(settings.seed, _FINAL, 4),
+        estimator=settings.estimator, backend=settings.mcmc_backend,
+    )
+    log_l = surrogate_log_likelihood(surrogate, settings.estimator)
+    summary = summarize(draws_u.numpy(), b, list(names), log_l)
+    draws = from_unit(draws_u.numpy().reshape(-1, q), b).reshape(draws_u.shape)
+    return CalibrationResult(
+        names=tuple(names), bounds=b, X=x, y=y, surrogate=surrogate, draws=draws,
+        summary=summary, n_evaluations=int(x.shape[0]), stop_reason=stop_reason,
+        history=tuple(history), mcmc=diag,
+    )

@@ -1,0 +1,350 @@
+"""A calibration study: rig + measured runs + config -> result folder.
+
+This is what ``susp-bo calibrate`` (and ``susp-bo demo``) runs. Everything is
+checked before the first simulation (rig, parameter names, measured runs
+against the rig's channels and band, the output folder and its store), then:
+
+1. the measured spectra y_exp,i (ν x C x F) and the track stretches x_j are
+   taken from the runs (μ = ν: each measured run's geometry and speed is one
+   track realization);
+2. the output error B is set: by default σ_B per channel is estimated from the
+   scatter of the measured spectra between runs (track-to-track variability
+   plus sensor noise, the part of the data the simulator cannot reproduce
+   without knowing the track exactly), or fixed in the config;
+3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
+   simulator evaluation going through the evaluation store and the executor;
+4. ``result.json``, the config used, the figures and the log are written.
+
+A study killed at any point is resumed with ``resume=True``: the store returns
+finished evaluations bit-for-bit and the loop is deterministic, so the result
+equals that of an uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from susp_bo import __version__
+from susp_bo.calibration.evaluation import LikelihoodEvaluator, TrackRun
+from susp_bo.calibration.likelihood import OutputError, estimate_output_error
+from susp_bo.calibration.loop import (
+    CalibrationResult,
+    CalibrationSettings,
+    IterationReport,
+    calibrate,
+)
+from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
+from susp_bo.execution import make_executor
+from susp_bo.rig.spec import RigSpec, load_rig_spec
+from susp_bo.store import EvaluationStore, study_fingerprint
+from susp_bo.study_config import StudyConfig
+
+STORE_NAME = "evaluations.sqlite"
+RESULT_NAME = "result.json"
+CONFIG_NAME = "study.toml"
+LOG_NAME = "study.log"
+
+
+class StudyError(ValueError):
+    """A study that cannot start: bad inputs or an output folder that is in the way."""
+
+
+@dataclass(frozen=True)
+class PreparedStudy:
+    """Everything a study needs, checked, before any simulation runs.
+
+    Attributes:
+        config: the study config.
+        spec: the rig (non-calibrated parameters fixed at the rig file's values).
+        names: calibrated parameter names (q,).
+        bounds: (2 x q) admissible set C_w.
+        runs: the ν measured runs (channels in the rig's order).
+        measured: (ν x C x F) measured log-amplitude spectra.
+        tracks: the μ track stretches.
+        error: the output error model B.
+        reference: (q,) true parameters when the data are synthetic, else None.
+    """
+
+    config: StudyConfig
+    spec: RigSpec
+    names: tuple[str, ...]
+    bounds: np.ndarray
+    runs: tuple[MeasuredRun, ...]
+    measured: np.ndarray
+    tracks: tuple[TrackRun, ...]
+    error: OutputError
+    reference: np.ndarray | None
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """(F,) the shared frequency grid."""
+        return self.spec.spectrum.frequencies_hz()
+
+
+def _axle_span_m(spec: RigSpec) -> float:
+    values = spec.parameter_values()
+    pivot = values.get("bogie_half_pivot_spacing", 0.0)
+    wheelbase = values.get("bogie_half_wheelbase", 0.0)
+    return 2.0 * (pivot + wheelbase)
+
+
+def _output_error(
+    config: StudyConfig, measured: np.ndarray, channels: tuple[str, ...]
+) -> OutputError:
+    sigma = config.output_error.sigma
+    ell = config.output_error.correlation_length_hz
+    if sigma == "estimate":
+        if measured.shape[0] < 2:
+            raise StudyError(
+                "output_error.sigma: 'estimate' needs at least 2 measured runs (found 1); "
+                "give sigma as a number or a {channel = sigma} table"
+            )
+        estimated = estimate_output_error(measured)
+        return OutputError(estimated.sigma, ell)
+    if isinstance(sigma, int | float):
+        return OutputError(tuple(float(sigma) for _ in channels), ell)
+    missing = [c for c in channels if c not in sigma]
+    if missing:
+        raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
+    return OutputError(tuple(float(sigma[c]) for c in channels), ell)
+
+
+def _reference(runs: tuple[MeasuredRun, ...], names: tuple[str, ...]) -> np.ndarray | None:
+    truth = runs[0].metadata.get("truth") if runs[0].metadata else None
+    if not isinstance(truth, dict) or not all(n in truth for n in names):
+        return None
+    return np.array([float(truth[n]) for n in names])
+
+
+def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
+    """Check every input of a study and load its data (no simulation).
+
+    Raises:
+        StudyError: naming what is wrong (rig, parameters, data, output folder).
+    """
+    try:
+        spec = load_rig_spec(config.rig)
+        names = config.check_parameters(spec.calibration_names)
+    except (FileNotFoundError, ValueError) as error:
+        raise StudyError(str(error)) from error
+    store_path = config.out / STORE_NAME
+    if store_path.exists() and not resume:
+        raise StudyError(
+            f"out: {config.out} already holds a study ({STORE_NAME}); resume it with --resume "
+            "or choose another output folder"
+        )
+    if resume and not store_path.exists():
+        raise StudyError(f"--resume: {store_path} does not exist; nothing to resume")
+    try:
+        runs = tuple(load_runs(config.data, channels=spec.channels))
+        for index, run in enumerate(runs):
+            validate_run(
+                run,
+                spec.channels,
+                spec.spectrum,
+                axle_span_m=_axle_span_m(spec),
+                source=f"{config.data}/run {index}",
+            )
+    except ValueError as error:
+        raise StudyError(f"data: {error}") from error
+    measured = np.stack([run.spectra(spec.spectrum).log_amplitude for run in runs])
+    tracks = tuple(
+        TrackRun(f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed)
+        for index, run in enumerate(runs)
+    )
+    all_names = spec.calibration_names
+    columns = [all_names.index(name) for name in names]
+    bounds = spec.calibration_bounds[:, columns]
+    return PreparedStudy(
+        config=config,
+        spec=spec,
+        names=tuple(names),
+        bounds=bounds,
+        runs=runs,
+        measured=measured,
+        tracks=tracks,
+        error=_output_error(config, measured, spec.channels),
+        reference=_reference(runs, tuple(names)),
+    )
+
+
+def calibration_settings(config: StudyConfig) -> CalibrationSettings:
+    """The loop settings a study config asks for."""
+    return CalibrationSettings(
+        seed=config.seeds.calibration,
+        batch_size=config.budget.batch_size,
+        max_evaluations=config.budget.max_evaluations,
+        initial_design_size=config.budget.initial_design,
+        mcmc_chains=config.mcmc.chains,
+        mcmc_warmup=config.mcmc.warmup,
+        mcmc_samples=config.mcmc.draws,
+    )
+
+
+def _logger(out: Path) -> logging.Logger:
+    logger = logging.getLogger(f"susp_bo.study.{out.resolve()}")
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+    if not logger.handlers:
+        handler = logging.FileHandler(out / LOG_NAME)
+        handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
+        logger.addHandler(handler)
+    return logger
+
+
+def result_payload(
+    study: PreparedStudy,
+    result: CalibrationResult,
+    n_simulations: int,
+    wall_time_s: float,
+) -> dict[str, Any]:
+    """The ``result.json`` content (DESIGN.md fields plus context), physical units."""
+    summary = result.summary.to_dict()
+    payload: dict[str, Any] = {
+        "parameters": list(study.names),
+        "units": [
+            next(c.unit for c in study.spec.calibration if c.name == name) for name in study.names
+        ],
+        "bounds": [[float(lo), float(hi)] for lo, hi in study.bounds.T],
+        "joint_map": summary["joint_map"],
+        "marginal_map": summary["marginal_map"],
+        "interval95": summary["interval95"],
+        "equal_tailed95": summary["equal_tailed95"],
+        "posterior_mean": summary["mean"],
+        "posterior_sd": summary["sd"],
+        "n_simulations": int(n_simulations),
+        "n_evaluations": int(result.n_evaluations),
+        "n_failed_evaluations": int(np.sum(~np.isfinite(result.y))),
+        "stop_reason": result.stop_reason,
+        "best_log_likelihood": float(np.nanmax(result.y)),
+        "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **result.mcmc},
+        "reference": None if study.reference is None else study.reference.tolist(),
+        "output_error": {
+            "channels": list(study.spec.channels),
+            "sigma": list(study.error.sigma),
+            "correlation_length_hz": study.error.correlation_length_hz,
+        },
+        "rig": study.spec.name,
+        "data": str(study.config.data),
+        "nu": len(study.runs),
+        "mu": len(study.tracks),
+        "seed": study.config.seeds.calibration,
+        "wall_time_s": wall_time_s,
+        "version": __version__,
+    }
+    return payload
+
+
+def _json_clean(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_clean(v) for v in value]
+    return value
+
+
+def run_study(
+    config: StudyConfig, resume: bool = False, progress: bool = True
+) -> tuple[dict[str, Any], CalibrationResult]:
+    """Run (or resume) a calibration study and write its results folder.
+
+    Args:
+        config: the study config.
+        resume: reuse the evaluation store of an interrupted run in ``config.out``.
+        progress: tqdm bars and one-line iteration summaries on stderr.
+
+    Returns:
+        The ``result.json`` payload and the calibration result.
+
+    Raises:
+        StudyError: bad inputs, before any simulation.
+    """
+    study = prepare_study(config, resume=resume)
+    out = config.out
+    out.mkdir(parents=True, exist_ok=True)
+    (out / CONFIG_NAME).write_text(config.to_toml())
+    log = _logger(out)
+    log.info(
+        "study %s: rig %s, %d runs, parameters %s",
+        out,
+        study.spec.name,
+        len(study.runs),
+        study.names,
+    )
+    fingerprint = study_fingerprint(
+        study.spec.fingerprint(),
+        json.dumps([t.track_id for t in study.tracks]),
+        study.names,
+        output_error=json.dumps(dataclasses.asdict(study.error)),
+    )
+    started = time.perf_counter()
+    with (
+        EvaluationStore(out / STORE_NAME, fingerprint) as store,
+        make_executor(
+            workers=config.executor.workers, scheduler=config.executor.scheduler
+        ) as executor,
+    ):
+        evaluator = LikelihoodEvaluator(
+            study.spec,
+            study.names,
+            study.tracks,
+            study.measured,
+            study.error,
+            store,
+            executor,
+            study.frequencies_hz,
+            progress=progress,
+        )
+
+        def report(item: IterationReport) -> None:
+            line = (
+                f"iteration {item.iteration} [{item.phase}]: "
+                f"best log L {item.best_log_likelihood:.3f}, criterion {item.criterion:.3g}, "
+                f"evaluations {item.n_evaluations}, simulator runs {evaluator.simulations_run} "
+                f"(+{evaluator.simulations_reused} reused)"
+            )
+            log.info(line)
+            if progress:
+                print(line, file=sys.stderr)
+
+        result = calibrate(
+            evaluator,
+            study.bounds,
+            study.names,
+            calibration_settings(config),
+            progress=progress,
+            on_iteration=report,
+        )
+        n_simulations = store.count()
+    payload = _json_clean(
+        result_payload(study, result, n_simulations, time.perf_counter() - started)
+    )
+    (out / RESULT_NAME).write_text(json.dumps(payload, indent=2) + "\n")
+    write_figures(study, result, out)
+    log.info("result written: %s", out / RESULT_NAME)
+    return payload, result
+
+
+def write_figures(study: PreparedStudy, result: CalibrationResult, out: Path) -> list[Path]:
+    """The paper's Fig. 1 and Fig. 2 and a pair plot, as PNG files in ``out``."""
+    from susp_bo import plots
+
+    return plots.posterior_figures(
+        result.summary,
+        result.samples,
+        study.bounds,
+        out,
+        reference=study.reference,
+    )

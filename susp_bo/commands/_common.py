@@ -1,0 +1,65 @@
+"""Helpers shared by the command implementations: parameter files, output folders, logging."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import tomllib
+
+from susp_bo.cli import UsageError
+
+
+def read_parameter_file(path: str | Path) -> dict[str, float]:
+    """Parameter values from a TOML file: ``name = value`` at top level or under ``[parameters]``.
+
+    Raises:
+        UsageError: missing file, bad TOML, or a value that is not a finite number.
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise UsageError(f"--params/--truth: file {str(file)!r} does not exist")
+    try:
+        data = tomllib.loads(file.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise UsageError(f"{file}: not valid TOML ({error})") from error
+    table = data.get("parameters", data)
+    if not isinstance(table, Mapping):
+        raise UsageError(f"{file}: [parameters] must be a table of name = value")
+    values: dict[str, float] = {}
+    for name, value in table.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise UsageError(f"{file}: parameter {name!r} = {value!r} is not a number")
+        if not math.isfinite(float(value)):
+            raise UsageError(f"{file}: parameter {name!r} = {value!r} is not finite")
+        values[str(name)] = float(value)
+    return values
+
+
+def output_folder(out: str | Path) -> Path:
+    """Create (if needed) and return the output folder."""
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def write_json(path: Path, payload: Mapping[str, Any]) -> None:
+    """Write ``payload`` as indented JSON (atomically: temp file then rename)."""
+    temporary = path.with_suffix(path.suffix + ".tmp")
+    temporary.write_text(json.dumps(payload, indent=2, allow_nan=False) + "\n")
+    temporary.replace(path)
+
+
+def file_logger(name: str, path: Path) -> logging.Logger:
+    """A logger writing to ``path`` (the run's log file) in addition to its parents."""
+    logger = logging.getLogger(f"susp_bo.run.{name}.{path}")
+    logger.setLevel(logging.INFO)
+    if not logger.handlers:
+        handler = logging.FileHandler(path)
+        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+        logger.addHandler(handler)
+    return logger

@@ -1,0 +1,104 @@
+"""``susp-bo calibrate``: the four steps on measured runs, from arguments or a study file."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+from susp_bo.calibration.study import StudyError, run_study
+from susp_bo.cli import UsageError
+from susp_bo.study_config import (
+    BudgetConfig,
+    ExecutorConfig,
+    StudyConfig,
+    load_study_config,
+    parse_study_config,
+)
+
+
+def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
+    """The study config of the command line (a study file, with command-line overrides).
+
+    Raises:
+        UsageError: missing or conflicting arguments, or an invalid config.
+    """
+    target = Path(args.rig_or_study)
+    try:
+        if (
+            target.suffix == ".toml"
+            and target.is_file()
+            and args.data_dir is None
+            and _is_study(target)
+        ):
+            config = load_study_config(target)
+            if args.out:
+                config = dataclasses.replace(config, out=Path(args.out).resolve())
+        else:
+            if args.data_dir is None or args.out is None:
+                raise UsageError(
+                    "give RIG DATA_DIR --out DIR, or a study .toml "
+                    f"(got rig_or_study={args.rig_or_study!r}, data_dir={args.data_dir!r}, "
+                    f"out={args.out!r})"
+                )
+            config = parse_study_config(
+                {"rig": args.rig_or_study, "data": args.data_dir, "out": args.out}, Path.cwd()
+            )
+        if args.budget is not None:
+            budget = config.budget
+            config = dataclasses.replace(
+                config,
+                budget=BudgetConfig(
+                    max_evaluations=args.budget,
+                    initial_design=min(budget.initial_design, args.budget),
+                    batch_size=budget.batch_size,
+                ),
+            )
+        if args.workers is not None or args.scheduler is not None:
+            config = dataclasses.replace(
+                config, executor=ExecutorConfig(workers=args.workers, scheduler=args.scheduler)
+            )
+    except ValueError as error:
+        raise UsageError(str(error)) from error
+    return config
+
+
+def _is_study(path: Path) -> bool:
+    """A study file names its data; a rig file has a [rig] table."""
+    import tomllib
+
+    try:
+        document = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError):
+        return True  # let load_study_config report the problem
+    return "rig" in document and not isinstance(document.get("rig"), dict)
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    """Run (or resume) the study and print where its results are."""
+    config = config_from_arguments(args)
+    try:
+        payload, _ = run_study(config, resume=args.resume)
+    except StudyError as error:
+        raise UsageError(str(error)) from error
+    print(format_summary(payload), file=sys.stderr)
+    print(f"susp-bo calibrate: results in {config.out}", file=sys.stderr)
+    return 0
+
+
+def format_summary(payload: dict) -> str:
+    """A plain-text table of the posterior (what a maintenance engineer reads first)."""
+    lines = [f"{'parameter':34s} {'marginal MAP':>13s} {'95 % interval':>27s} {'reference':>11s}"]
+    reference = payload.get("reference")
+    for k, name in enumerate(payload["parameters"]):
+        lo, hi = payload["interval95"][k]
+        ref = "" if reference is None else f"{reference[k]:11.4g}"
+        lines.append(
+            f"{name:34s} {payload['marginal_map'][k]:13.4g} [{lo:11.4g}, {hi:11.4g}] {ref}"
+        )
+    lines.append(
+        f"simulator runs: {payload['n_simulations']}, likelihood evaluations: "
+        f"{payload['n_evaluations']}, wall time {payload['wall_time_s']:.0f} s"
+    )
+    return "\n".join(lines)

@@ -1,0 +1,75 @@
+"""``susp-bo synth``: synthetic measured runs from a rig, written in the measured-data format."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from susp_bo.cli import UsageError
+from susp_bo.commands._common import output_folder, read_parameter_file, write_json
+from susp_bo.data.measured import save_run
+from susp_bo.data.synthetic import synthesize_runs
+from susp_bo.rig.spec import load_rig_spec
+
+
+def parse_effect(text: str) -> tuple[str, dict[str, float]]:
+    """``NAME[:k=v,...]`` -> (name, {k: v}).
+
+    Raises:
+        UsageError: malformed text or a value that is not a number.
+    """
+    name, _, rest = text.partition(":")
+    if not name.strip():
+        raise UsageError(f"--effect: {text!r} has no effect name; expected NAME[:k=v,...]")
+    values: dict[str, float] = {}
+    for item in filter(None, (part.strip() for part in rest.split(","))):
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise UsageError(f"--effect: {item!r} in {text!r} is not k=v")
+        try:
+            values[key.strip()] = float(value)
+        except ValueError as error:
+            raise UsageError(f"--effect: {key.strip()}={value!r} is not a number") from error
+    return name.strip(), values
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    """Write ``run_000.h5`` … ``run_{nu-1}.h5`` and ``truth.json`` into ``--out``."""
+    effects = [parse_effect(text) for text in args.effect]
+    if effects:
+        raise UsageError(
+            f"--effect {effects[0][0]!r}: the library of candidate effects is not built yet "
+            "(issue 4, model discrepancy); no data were written"
+        )
+    try:
+        spec = load_rig_spec(args.rig)
+        truth = read_parameter_file(args.truth) if args.truth else {}
+        spec.with_parameters(truth)
+    except (FileNotFoundError, ValueError) as error:
+        raise UsageError(str(error)) from error
+    if args.nu < 1:
+        raise UsageError(f"--nu: got {args.nu}; expected an integer >= 1")
+    if args.noise < 0:
+        raise UsageError(f"--noise: got {args.noise}; expected >= 0 m/s^2")
+    if args.speed is not None and not args.speed > 0:
+        raise UsageError(f"--speed: got {args.speed}; expected > 0 m/s")
+    out = output_folder(args.out)
+    print(f"susp-bo synth: {args.nu} runs of {spec.name}, seed {args.seed}", file=sys.stderr)
+    runs = synthesize_runs(
+        spec, truth, nu=args.nu, seed=args.seed, noise_m_s2=args.noise, speed_m_s=args.speed
+    )
+    for index, run in enumerate(runs):
+        save_run(run, out / f"run_{index:03d}.h5")
+    write_json(
+        out / "truth.json",
+        {
+            "rig": spec.name,
+            "truth": runs[0].metadata["truth"],
+            "seed": args.seed,
+            "nu": args.nu,
+            "noise_m_s2": args.noise,
+            "effects": [],
+        },
+    )
+    print(f"susp-bo synth: wrote {len(runs)} runs to {out}", file=sys.stderr)
+    return 0

@@ -1,0 +1,383 @@
+"""Importers (and matching exporters) of measured runs from CSV and MATLAB ``.mat`` files.
+
+CSV layout (comma separated, one header row, lines starting with ``#`` ignored,
+empty cells read as NaN):
+
+* accelerations file: first column ``time_s`` (s, uniformly sampled — the
+  sampling rate is derived from it), then one column per sensor named
+  ``<channel>`` or ``<channel> [<unit>]`` (unit default ``m/s^2``; ``g``,
+  ``mm/s^2``, ``cm/s^2`` are recognised, see :meth:`MeasuredRun.to_si`).
+  An optional column ``speed_m_s`` holds the speed record at the same times.
+* geometry file: columns ``s_m, vertical_m, alignment_m, cross_level_rad,
+  gauge_m`` (any order, no others), ``s_m`` uniformly spaced. The first row is
+  the track origin (s = 0); its original chainage is kept in the metadata as
+  ``geometry_start_m``.
+* speed: a constant in m/s, or a CSV with columns ``time_s, speed_m_s``, or
+  (``speed=None``) the ``speed_m_s`` column of the accelerations file.
+
+The clock starts at the first row of the speed CSV (or at the first
+acceleration sample otherwise); the accelerations' ``time_offset_s`` is their
+first time on that clock.
+
+MATLAB layout (``scipy.io.loadmat``; v4–v7 files; v7.3 files are HDF5 and are
+refused with a hint): variables ``accelerations`` (n_t x C, or C x n_t when
+unambiguous), ``channels`` (cell array of char), ``units`` (optional cell
+array, default m/s^2), ``sample_rate_hz``, ``time_offset_s`` (optional),
+``spacing_m``, ``vertical_m``, ``alignment_m``, ``cross_level_rad``,
+``gauge_m``, ``speed_m_s`` (scalar = constant, or vector with ``speed_time_s``),
+``metadata_json`` (optional char).
+
+Every problem raises :class:`~susp_bo.data.measured.MeasuredDataError` naming
+the file, the column or variable and the expectation.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.io
+
+from susp_bo.data.measured import (
+    SI_ACCELERATION,
+    MeasuredDataError,
+    MeasuredRun,
+    nan_runs,
+)
+from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
+
+PathLike = str | os.PathLike[str]
+_GEOMETRY_COLUMNS = ("s_m", *GEOMETRY_COMPONENTS)
+
+
+def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
+    """Header names and a float64 (rows x columns) table; empty cells are NaN."""
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            rows = [r for r in csv.reader(handle) if r and not r[0].lstrip().startswith("#")]
+    except (OSError, UnicodeError, csv.Error) as error:
+        raise MeasuredDataError(f"{path}: cannot read CSV ({error})") from None
+    if len(rows) < 3:
+        raise MeasuredDataError(f"{path}: needs a header row and at least 2 data rows")
+    header = [name.strip() for name in rows[0]]
+    if len(set(header)) != len(header) or not all(header):
+        raise MeasuredDataError(f"{path}: column names must be unique and non-empty: {header}")
+    table = np.empty((len(rows) - 1, len(header)))
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise MeasuredDataError(
+                f"{path}: line {i + 2} has {len(row)} cells; the header has {len(header)}"
+            )
+        for j, cell in enumerate(row):
+            try:
+                table[i, j] = float(cell) if cell.strip() else np.nan
+            except ValueError:
+                raise MeasuredDataError(
+                    f"{path}: line {i + 2}, column {header[j]!r}: {cell!r} is not a number"
+                ) from None
+    return header, table
+
+
+def _uniform_step(path: Path, name: str, values: np.ndarray) -> float:
+    """The step of a uniformly spaced, finite, increasing column, or MeasuredDataError."""
+    if not np.all(np.isfinite(values)):
+        raise MeasuredDataError(f"{path}: column {name!r} has empty or non-finite cells")
+    steps = np.diff(values)
+    step = (values[-1] - values[0]) / (values.size - 1)
+    if step <= 0 or np.max(np.abs(steps - step)) > 1e-3 * step:
+        raise MeasuredDataError(
+            f"{path}: column {name!r} must increase in equal steps (found steps "
+            f"{steps.min():g} … {steps.max():g})"
+        )
+    return float(step)
+
+
+def _split_unit(column: str) -> tuple[str, str]:
+    if column.endswith("]") and "[" in column:
+        name, unit = column[:-1].rsplit("[", 1)
+        return name.strip(), unit.strip()
+    return column, SI_ACCELERATION
+
+
+def _check_nan(path: Path, run: MeasuredRun, allow_nan: bool) -> MeasuredRun:
+    if not allow_nan:
+        for name in run.channels:
+            runs = nan_runs(run.channel(name))
+            if runs:
+                raise MeasuredDataError(
+                    f"{path}: channel {name!r} has NaN runs ({len(runs)} run(s), "
+                    f"{sum(r[1] for r in runs)} samples); pass allow_nan=True to keep them"
+                )
+    return run
+
+
+def _build(path: Path, **fields: Any) -> MeasuredRun:
+    try:
+        return MeasuredRun(**fields)
+    except ValueError as error:
+        raise MeasuredDataError(f"{path}: {error}") from None
+
+
+def _geometry(path: Path, **fields: Any) -> TrackGeometry:
+    try:
+        return TrackGeometry(**fields)
+    except ValueError as error:
+        raise MeasuredDataError(f"{path}: {error}") from None
+
+
+def _speed(path: Path, time: np.ndarray, speed: np.ndarray) -> SpeedProfile:
+    try:
+        return SpeedProfile(time_s=time, speed_m_s=speed)
+    except ValueError as error:
+        raise MeasuredDataError(f"{path}: {error}") from None
+
+
+def read_csv_run(
+    accelerations_csv: PathLike,
+    geometry_csv: PathLike,
+    speed: float | PathLike | None = None,
+    *,
+    metadata: dict[str, Any] | None = None,
+    allow_nan: bool = False,
+) -> MeasuredRun:
+    """Import one run from CSV files (layout in the module docstring).
+
+    Args:
+        accelerations_csv: ``time_s`` + channel columns (+ optional ``speed_m_s``).
+        geometry_csv: ``s_m`` + the four geometry columns.
+        speed: constant speed (m/s), a speed CSV, or None for the ``speed_m_s`` column.
+        metadata: stored with the run (``geometry_start_m`` and ``source`` are added).
+        allow_nan: keep empty / NaN acceleration cells instead of refusing the file.
+
+    Raises:
+        MeasuredDataError: naming the file, line or column.
+    """
+    acc_path, geo_path = Path(accelerations_csv), Path(geometry_csv)
+    header, table = _read_table(acc_path)
+    if header[0] != "time_s":
+        raise MeasuredDataError(f"{acc_path}: the first column must be 'time_s'; got {header[0]!r}")
+    time = table[:, 0]
+    rate = 1.0 / _uniform_step(acc_path, "time_s", time)
+    channel_columns = [j for j, name in enumerate(header) if j > 0 and name != "speed_m_s"]
+    if not channel_columns:
+        raise MeasuredDataError(f"{acc_path}: no acceleration channel columns after 'time_s'")
+    names, units = zip(*(_split_unit(header[j]) for j in channel_columns))
+
+    if speed is None:
+        if "speed_m_s" not in header:
+            raise MeasuredDataError(
+                f"{acc_path}: no speed: give speed= (m/s or a CSV) or a 'speed_m_s' column"
+            )
+        clock = time[0]
+        profile = _speed(acc_path, time - clock, table[:, header.index("speed_m_s")])
+    elif isinstance(speed, (int, float)) and not isinstance(speed, bool):
+        clock = time[0]
+        duration = time[-1] - clock
+        profile = _speed(acc_path, np.array([0.0, duration]), np.array([speed, speed], float))
+    else:
+        speed_path = Path(speed)
+        speed_header, speed_table = _read_table(speed_path)
+        if sorted(speed_header) != ["speed_m_s", "time_s"]:
+            raise MeasuredDataError(
+                f"{speed_path}: columns must be 'time_s', 'speed_m_s'; got {speed_header}"
+            )
+        speed_time = speed_table[:, speed_header.index("time_s")]
+        clock = speed_time[0] if speed_time.size else 0.0
+        profile = _speed(
+            speed_path, speed_time - clock, speed_table[:, speed_header.index("speed_m_s")]
+        )
+    offset = float(time[0] - clock)
+    if offset < 0:
+        raise MeasuredDataError(
+            f"{acc_path}: accelerations start at t = {time[0]:g} s, before the speed record "
+            f"({clock:g} s)"
+        )
+
+    geo_header, geo_table = _read_table(geo_path)
+    if sorted(geo_header) != sorted(_GEOMETRY_COLUMNS):
+        raise MeasuredDataError(
+            f"{geo_path}: columns must be {list(_GEOMETRY_COLUMNS)}; missing "
+            f"{sorted(set(_GEOMETRY_COLUMNS) - set(geo_header))}, unknown "
+            f"{sorted(set(geo_header) - set(_GEOMETRY_COLUMNS))}"
+        )
+    s = geo_table[:, geo_header.index("s_m")]
+    spacing = _uniform_step(geo_path, "s_m", s)
+    geometry = _geometry(
+        geo_path,
+        spacing_m=spacing,
+        **{name: geo_table[:, geo_header.index(name)] for name in GEOMETRY_COMPONENTS},
+    )
+    info = {"source": f"csv:{acc_path.name}", **(metadata or {}), "geometry_start_m": float(s[0])}
+    run = _build(
+        acc_path,
+        geometry=geometry,
+        speed=profile,
+        channels=tuple(names),
+        accelerations_m_s2=table[:, channel_columns].T,
+        sample_rate_hz=rate,
+        units=tuple(units),
+        metadata=info,
+        time_offset_s=offset,
+    )
+    return _check_nan(acc_path, run, allow_nan)
+
+
+def write_csv_run(
+    run: MeasuredRun, accelerations_csv: PathLike, geometry_csv: PathLike, speed_csv: PathLike
+) -> None:
+    """Export ``run`` to the CSV layout (times on the speed clock; full float precision)."""
+    header = ["time_s", *(f"{c} [{u}]" for c, u in zip(run.channels, run.units))]
+    columns = [run.time_s, *run.accelerations_m_s2]
+    _write_table(Path(accelerations_csv), header, np.column_stack(columns))
+    geometry = run.geometry
+    _write_table(
+        Path(geometry_csv),
+        list(_GEOMETRY_COLUMNS),
+        np.column_stack([geometry.position_m, *geometry.stacked()]),
+    )
+    _write_table(
+        Path(speed_csv),
+        ["time_s", "speed_m_s"],
+        np.column_stack([run.speed.time_s, run.speed.speed_m_s]),
+    )
+
+
+def _write_table(path: Path, header: list[str], table: np.ndarray) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        writer.writerows([["" if np.isnan(v) else repr(float(v)) for v in row] for row in table])
+
+
+def _mat_strings(path: Path, name: str, value: Any) -> tuple[str, ...]:
+    if isinstance(value, str):
+        return (value.strip(),)
+    array = np.asarray(value, dtype=object).ravel()
+    out = []
+    for item in array:
+        if isinstance(item, np.ndarray):
+            item = item.item() if item.size == 1 else "".join(map(str, item.ravel()))
+        if not isinstance(item, str):
+            raise MeasuredDataError(f"{path}: variable {name!r} must be a cell array of char")
+        out.append(item.strip())
+    return tuple(out)
+
+
+def _mat_number(path: Path, variables: dict[str, Any], name: str, default: Any = None) -> float:
+    if name not in variables:
+        if default is None:
+            raise MeasuredDataError(f"{path}: missing variable {name!r}")
+        return float(default)
+    value = np.asarray(variables[name])
+    if value.size != 1 or value.dtype.kind not in "fiu":
+        raise MeasuredDataError(f"{path}: variable {name!r} must be a real scalar")
+    return float(value.item())
+
+
+def _mat_vector(path: Path, variables: dict[str, Any], name: str) -> np.ndarray:
+    if name not in variables:
+        raise MeasuredDataError(f"{path}: missing variable {name!r}")
+    value = np.asarray(variables[name])
+    if value.dtype.kind not in "fiu" or value.ndim > 1:
+        raise MeasuredDataError(
+            f"{path}: variable {name!r} must be a real vector; got {value.dtype}, {value.shape}"
+        )
+    return value.astype(np.float64).ravel()
+
+
+def read_mat_run(
+    path: PathLike, *, metadata: dict[str, Any] | None = None, allow_nan: bool = False
+) -> MeasuredRun:
+    """Import one run from a MATLAB ``.mat`` file (layout in the module docstring).
+
+    Raises:
+        MeasuredDataError: unreadable file, missing or mis-shaped variables, bad values.
+    """
+    mat_path = Path(path)
+    try:
+        variables = scipy.io.loadmat(mat_path, squeeze_me=True, chars_as_strings=True)
+    except NotImplementedError:
+        raise MeasuredDataError(
+            f"{mat_path}: MATLAB v7.3 (HDF5) files are not read here; save with "
+            "save(..., '-v7') or write the HDF5 measured-run format"
+        ) from None
+    except (OSError, ValueError, TypeError, EOFError) as error:
+        raise MeasuredDataError(f"{mat_path}: not a readable .mat file ({error})") from None
+    if "channels" not in variables:
+        raise MeasuredDataError(f"{mat_path}: missing variable 'channels'")
+    channels = _mat_strings(mat_path, "channels", variables["channels"])
+    units = (
+        _mat_strings(mat_path, "units", variables["units"])
+        if "units" in variables
+        else (SI_ACCELERATION,) * len(channels)
+    )
+    if "accelerations" not in variables:
+        raise MeasuredDataError(f"{mat_path}: missing variable 'accelerations'")
+    data = np.asarray(variables["accelerations"])
+    if data.dtype.kind not in "fiu":
+        raise MeasuredDataError(f"{mat_path}: 'accelerations' must be real numbers")
+    data = data.astype(np.float64)
+    if data.ndim == 1:
+        data = data[:, None]
+    if data.ndim != 2 or len(channels) not in data.shape:
+        raise MeasuredDataError(
+            f"{mat_path}: 'accelerations' has shape {data.shape}; expected (n_t, C) with "
+            f"C = {len(channels)} channels"
+        )
+    if data.shape[1] != len(channels):
+        data = data.T
+    speed = _mat_vector(mat_path, variables, "speed_m_s")
+    if speed.size == 1:
+        end = _mat_number(mat_path, variables, "time_offset_s", 0.0) + (data.shape[0] - 1) / (
+            _mat_number(mat_path, variables, "sample_rate_hz")
+        )
+        profile = _speed(mat_path, np.array([0.0, max(end, 1e-9)]), np.repeat(speed, 2))
+    else:
+        profile = _speed(mat_path, _mat_vector(mat_path, variables, "speed_time_s"), speed)
+    geometry = _geometry(
+        mat_path,
+        spacing_m=_mat_number(mat_path, variables, "spacing_m"),
+        **{name: _mat_vector(mat_path, variables, name) for name in GEOMETRY_COMPONENTS},
+    )
+    stored: dict[str, Any] = {}
+    if "metadata_json" in variables:
+        try:
+            stored = json.loads(str(variables["metadata_json"]))
+        except json.JSONDecodeError as error:
+            raise MeasuredDataError(f"{mat_path}: 'metadata_json' is not JSON ({error})") from None
+        if not isinstance(stored, dict):
+            raise MeasuredDataError(f"{mat_path}: 'metadata_json' must hold a JSON object")
+    run = _build(
+        mat_path,
+        geometry=geometry,
+        speed=profile,
+        channels=channels,
+        accelerations_m_s2=data.T,
+        sample_rate_hz=_mat_number(mat_path, variables, "sample_rate_hz"),
+        units=units,
+        metadata={"source": f"mat:{mat_path.name}", **stored, **(metadata or {})},
+        time_offset_s=_mat_number(mat_path, variables, "time_offset_s", 0.0),
+    )
+    return _check_nan(mat_path, run, allow_nan)
+
+
+def write_mat_run(run: MeasuredRun, path: PathLike) -> None:
+    """Export ``run`` to a MATLAB v5 ``.mat`` file in the documented layout."""
+    variables: dict[str, Any] = {
+        "accelerations": run.accelerations_m_s2.T,
+        "channels": np.array(run.channels, dtype=object),
+        "units": np.array(run.units, dtype=object),
+        "sample_rate_hz": run.sample_rate_hz,
+        "time_offset_s": run.time_offset_s,
+        "spacing_m": run.geometry.spacing_m,
+        "speed_time_s": run.speed.time_s,
+        "speed_m_s": run.speed.speed_m_s,
+        "metadata_json": json.dumps(run.metadata, sort_keys=True),
+    }
+    for name in GEOMETRY_COMPONENTS:
+        variables[name] = getattr(run.geometry, name)
+    scipy.io.savemat(Path(path), variables, do_compression=False, oned_as="column")

@@ -1,0 +1,478 @@
+"""Measured runs: track geometry, speed and accelerations of one run, and its HDF5 file.
+
+A measured run is what the paper calls one realization ``y_exp,i`` together
+with the excitation ``x_exp,i`` recorded with it: the track geometry sampled in
+space, the speed record, and the accelerations of every sensor channel.
+
+HDF5 format, version 1 (one run per file, extension ``.h5`` or ``.hdf5``)
+------------------------------------------------------------------------
+
+All numbers are float64, SI units. Every numeric dataset carries a ``units``
+attribute (checked on load)::
+
+    /                                   attrs: format = "susp_bo.measured_run"
+    │                                          format_version = 1
+    │                                          metadata_json = JSON object (str)
+    │                                          content_sha256 = hex digest (optional)
+    ├── geometry/                       attrs: spacing_m (> 0, m)
+    │   ├── vertical_m       (N,)  "m"    mean of the two rails, + up
+    │   ├── alignment_m      (N,)  "m"    mean lateral rail position, + left
+    │   ├── cross_level_rad  (N,)  "rad"  roll of the rail plane, + left rail higher
+    │   └── gauge_m          (N,)  "m"    gauge deviation from nominal, + wider
+    │                                     sampled at s = 0, ds, 2 ds, …  (N >= 2)
+    ├── speed/
+    │   ├── time_s           (n,)  "s"    strictly increasing, time_s[0] = 0
+    │   └── speed_m_s        (n,)  "m/s"  > 0, piecewise linear in between
+    └── accelerations/                  attrs: sample_rate_hz (> 0, Hz)
+        │                                      time_offset_s (>= 0, s; default 0)
+        ├── data             (C, n_t)  per-channel units (below)
+        ├── channels         (C,)  UTF-8 strings, unique sensor names
+        └── units            (C,)  UTF-8 strings, e.g. "m/s^2"
+
+Sample ``j`` of the accelerations is at ``time_offset_s + j / sample_rate_hz``
+on the clock of the speed record; the car's rearmost axle is at ``s = 0`` at
+``t = 0`` (the convention of :func:`susp_bo.rig.track.axle_excitation`).
+``metadata_json`` holds free-form information (rig name, truth parameters and
+effects of synthetic runs, seed, noise, line and date of real ones).
+``content_sha256`` is the SHA-256 of the run's canonical content (written by
+:func:`save_run`; verified on load when present, so files written by other tools
+may omit it). Datasets are written chunked with Fletcher-32 checksums and
+HDF5 ≥ 1.10 object headers, so corrupted bytes are detected instead of read.
+
+Loading never returns a half-valid run: any problem (not HDF5, truncated,
+missing or extra-shaped dataset, wrong dtype, wrong units attribute, NaN or
+inf, non-positive sample rate, …) raises :class:`MeasuredDataError`, a
+``ValueError`` naming the file, the item and what was expected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from susp_bo.rig.spectra import Spectra, SpectrumSettings, log_amplitude_spectra
+from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
+
+FloatArray = NDArray[np.float64]
+
+FORMAT_NAME = "susp_bo.measured_run"
+FORMAT_VERSION = 1
+SI_ACCELERATION = "m/s^2"
+GEOMETRY_UNITS = {
+    "vertical_m": "m",
+    "alignment_m": "m",
+    "cross_level_rad": "rad",
+    "gauge_m": "m",
+}
+_UNIT_ALIASES = {
+    "m/s^2": ("m/s^2", "m/s2", "m/s**2", "m/s²", "m s-2", "m s^-2", "m.s-2", "m·s-2"),
+    "g": ("g", "g0", "gn"),
+    "mm/s^2": ("mm/s^2", "mm/s2", "mm/s²"),
+    "cm/s^2": ("cm/s^2", "cm/s2", "cm/s²", "gal"),
+}
+_TO_SI = {"m/s^2": 1.0, "g": 9.80665, "mm/s^2": 1e-3, "cm/s^2": 1e-2}
+
+
+class MeasuredDataError(ValueError):
+    """A measured run (in memory or on disk) is malformed; the message says where and why."""
+
+
+def canonical_unit(unit: str) -> str:
+    """The canonical spelling of an acceleration unit (``"m/s^2"``, ``"g"``, …), or ``unit``."""
+    cleaned = unit.strip()
+    for name, aliases in _UNIT_ALIASES.items():
+        if cleaned.lower() in {a.lower() for a in aliases}:
+            return name
+    return cleaned
+
+
+def _json_builtin(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (set, frozenset)):
+        return sorted(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def nan_runs(values: FloatArray) -> list[tuple[int, int]]:
+    """Runs of consecutive NaN in a 1-D array, as (start index, length) pairs."""
+    bad = np.isnan(values).astype(np.int8)
+    changes = np.flatnonzero(np.diff(np.concatenate([[0], bad, [0]])))
+    return [(int(a), int(b - a)) for a, b in zip(changes[::2], changes[1::2])]
+
+
+@dataclass(frozen=True, eq=False)
+class MeasuredRun:
+    """One measured (or synthetic) run: geometry, speed and accelerations.
+
+    Args:
+        geometry: track geometry under the run, sampled in space.
+        speed: speed record (its clock starts at 0 s).
+        channels: sensor names (C,), unique.
+        accelerations_m_s2: accelerations (C x n_t), in ``units`` (m/s² for a
+            calibration); NaN marks dropouts (see :func:`validate_run`), inf is refused.
+        sample_rate_hz: sampling rate of the accelerations (Hz), > 0.
+        units: unit of each channel (C,), canonical spelling applied (``"m/s^2"``).
+        metadata: JSON-compatible information; stored as its JSON round trip.
+        time_offset_s: time of the first acceleration sample on the speed clock (s), >= 0.
+    """
+
+    geometry: TrackGeometry
+    speed: SpeedProfile
+    channels: tuple[str, ...]
+    accelerations_m_s2: FloatArray
+    sample_rate_hz: float
+    units: tuple[str, ...] = ()
+    metadata: dict[str, Any] = field(default_factory=dict)
+    time_offset_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.geometry, TrackGeometry):
+            raise MeasuredDataError(
+                "MeasuredRun.geometry: expected a TrackGeometry, got "
+                f"{type(self.geometry).__name__}"
+            )
+        if not isinstance(self.speed, SpeedProfile):
+            raise MeasuredDataError(
+                f"MeasuredRun.speed: expected a SpeedProfile, got {type(self.speed).__name__}"
+            )
+        channels = tuple(self.channels) if not isinstance(self.channels, str) else ()
+        if not channels or not all(isinstance(c, str) and c.strip() for c in channels):
+            raise MeasuredDataError(
+                f"MeasuredRun.channels: need one or more non-empty names; got {self.channels!r}"
+            )
+        if len(set(channels)) != len(channels):
+            duplicates = sorted({c for c in channels if channels.count(c) > 1})
+            raise MeasuredDataError(f"MeasuredRun.channels: duplicate names {duplicates}")
+        try:
+            data = np.array(self.accelerations_m_s2, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise MeasuredDataError(
+                f"MeasuredRun.accelerations_m_s2: not numeric ({error})"
+            ) from None
+        if data.ndim != 2 or data.shape[0] != len(channels) or data.shape[1] < 2:
+            raise MeasuredDataError(
+                f"MeasuredRun.accelerations_m_s2: shape {data.shape}; expected (C, n_t) with "
+                f"C = {len(channels)} channels and n_t >= 2 samples"
+            )
+        if np.any(np.isinf(data)):
+            row = int(np.argmax(np.any(np.isinf(data), axis=1)))
+            raise MeasuredDataError(
+                f"MeasuredRun.accelerations_m_s2: channel {channels[row]!r} contains inf"
+            )
+        data.setflags(write=False)
+        rate = _positive_number("MeasuredRun.sample_rate_hz", self.sample_rate_hz, "Hz")
+        offset = _number("MeasuredRun.time_offset_s", self.time_offset_s, "s")
+        if offset < 0:
+            raise MeasuredDataError(f"MeasuredRun.time_offset_s: got {offset} s; must be >= 0 s")
+        units = tuple(self.units) if self.units else (SI_ACCELERATION,) * len(channels)
+        if len(units) != len(channels) or not all(isinstance(u, str) for u in units):
+            raise MeasuredDataError(
+                f"MeasuredRun.units: need one string per channel ({len(channels)}); got {units!r}"
+            )
+        try:
+            metadata = json.loads(json.dumps(dict(self.metadata), default=_json_builtin))
+        except (TypeError, ValueError) as error:
+            raise MeasuredDataError(
+                f"MeasuredRun.metadata: must be JSON-compatible ({error})"
+            ) from None
+        object.__setattr__(self, "channels", channels)
+        object.__setattr__(self, "accelerations_m_s2", data)
+        object.__setattr__(self, "sample_rate_hz", rate)
+        object.__setattr__(self, "time_offset_s", offset)
+        object.__setattr__(self, "units", tuple(canonical_unit(u) for u in units))
+        object.__setattr__(self, "metadata", metadata)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of acceleration samples n_t."""
+        return int(self.accelerations_m_s2.shape[1])
+
+    @property
+    def duration_s(self) -> float:
+        """Length of the acceleration record, ``n_t / sample_rate_hz`` (s)."""
+        return self.n_samples / self.sample_rate_hz
+
+    @property
+    def time_s(self) -> FloatArray:
+        """Times of the acceleration samples on the speed clock, (n_t,) s."""
+        return self.time_offset_s + np.arange(self.n_samples) / self.sample_rate_hz
+
+    def channel(self, name: str) -> FloatArray:
+        """Acceleration record of one channel, (n_t,)."""
+        if name not in self.channels:
+            raise KeyError(f"MeasuredRun: no channel {name!r}; channels are {list(self.channels)}")
+        return self.accelerations_m_s2[self.channels.index(name)]
+
+    def select(self, channels: Sequence[str]) -> MeasuredRun:
+        """The same run restricted to (and ordered as) ``channels``."""
+        missing = [c for c in channels if c not in self.channels]
+        if missing:
+            raise MeasuredDataError(
+                f"missing channel(s) {missing}; the run has {list(self.channels)}"
+            )
+        index = [self.channels.index(c) for c in channels]
+        return replace(
+            self,
+            channels=tuple(channels),
+            accelerations_m_s2=self.accelerations_m_s2[index],
+            units=tuple(self.units[i] for i in index),
+        )
+
+    def to_si(self) -> MeasuredRun:
+        """The run with every channel converted to m/s² (from g, mm/s², cm/s²)."""
+        unknown = [(c, u) for c, u in zip(self.channels, self.units) if u not in _TO_SI]
+        if unknown:
+            raise MeasuredDataError(
+                f"unit mismatch: cannot convert {unknown} to m/s^2; known units {sorted(_TO_SI)}"
+            )
+        factors = np.array([_TO_SI[u] for u in self.units])[:, None]
+        return replace(
+            self,
+            accelerations_m_s2=self.accelerations_m_s2 * factors,
+            units=(SI_ACCELERATION,) * len(self.channels),
+        )
+
+    def spectra(self, settings: SpectrumSettings | None = None) -> Spectra:
+        """Log-amplitude spectra of all channels (C x F), see :mod:`susp_bo.rig.spectra`.
+
+        Raises:
+            MeasuredDataError: a channel not in m/s², NaN samples, or a record
+                that cannot resolve the band.
+        """
+        settings = SpectrumSettings() if settings is None else settings
+        problems = _unit_problems(self, self.channels) + _nan_problems(self, self.channels)
+        if problems:
+            raise MeasuredDataError("; ".join(problems))
+        try:
+            return log_amplitude_spectra(
+                self.accelerations_m_s2, self.sample_rate_hz, self.channels, settings
+            )
+        except ValueError as error:
+            raise MeasuredDataError(str(error)) from None
+
+    def content_digest(self) -> str:
+        """SHA-256 (hex) of the canonical content: arrays, names, units, rates, metadata."""
+        digest = hashlib.sha256()
+        digest.update(f"{FORMAT_NAME}/{FORMAT_VERSION}".encode())
+        digest.update(np.float64(self.geometry.spacing_m).tobytes())
+        for name in GEOMETRY_COMPONENTS:
+            digest.update(np.ascontiguousarray(getattr(self.geometry, name)).tobytes())
+        for array in (self.speed.time_s, self.speed.speed_m_s, self.accelerations_m_s2):
+            digest.update(str(array.shape).encode())
+            digest.update(np.ascontiguousarray(array).tobytes())
+        text = json.dumps(
+            [
+                self.channels,
+                self.units,
+                self.sample_rate_hz.hex(),
+                self.time_offset_s.hex(),
+                self.metadata,
+            ],
+            sort_keys=True,
+        )
+        digest.update(text.encode())
+        return digest.hexdigest()
+
+
+def _number(name: str, value: object, unit: str) -> float:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
+        raise MeasuredDataError(f"{name}: got {value!r}; expected a real number ({unit})")
+    number = float(value)
+    if not math.isfinite(number):
+        raise MeasuredDataError(f"{name}: got {number}; must be finite ({unit})")
+    return number
+
+
+def _positive_number(name: str, value: object, unit: str) -> float:
+    number = _number(name, value, unit)
+    if number <= 0:
+        raise MeasuredDataError(f"{name}: got {number} {unit}; must be > 0 {unit}")
+    return number
+
+
+def _unit_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
+    wrong = [
+        f"{c!r} in {u!r}"
+        for c, u in zip(run.channels, run.units)
+        if c in channels and u != SI_ACCELERATION
+    ]
+    return [
+        f"unit mismatch: {', '.join(wrong)}; expected m/s^2 (MeasuredRun.to_si converts)"
+    ] * bool(wrong)
+
+
+def _nan_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
+    problems = []
+    for name in channels:
+        if name not in run.channels:
+            continue
+        runs = nan_runs(run.channel(name))
+        if runs:
+            start, length = max(runs, key=lambda r: r[1])
+            problems.append(
+                f"channel {name!r} has NaN runs: {len(runs)} run(s), "
+                f"{sum(r[1] for r in runs)} samples; longest {length / run.sample_rate_hz:.4g} s "
+                f"at t = {run.time_s[start]:.4g} s"
+            )
+    return problems
+
+
+def validate_run(
+    run: MeasuredRun,
+    channels: Sequence[str] | None = None,
+    settings: SpectrumSettings | None = None,
+    *,
+    axle_span_m: float = 0.0,
+    source: str = "run",
+) -> None:
+    """Check that a run can feed a rig; raise one error listing every problem found.
+
+    Checks: the required channels are present; their units are m/s²; they hold
+    no NaN runs; the sampling rate exceeds twice ``settings.f_max_hz`` and the
+    record holds one Welch segment; the speed record covers the acceleration
+    record; the track covers the distance travelled plus the axle span.
+
+    Args:
+        run: the run.
+        channels: channels the rig expects; None checks all of the run's.
+        settings: spectra settings of the rig; None skips the band checks.
+        axle_span_m: distance from the rearmost to the leading axle (m), >= 0;
+            the track must be at least distance travelled + this long.
+        source: name used in the message (e.g. the file).
+
+    Raises:
+        MeasuredDataError: naming every problem.
+    """
+    wanted = tuple(run.channels if channels is None else channels)
+    problems: list[str] = []
+    missing = [c for c in wanted if c not in run.channels]
+    if missing:
+        problems.append(f"missing channel(s) {missing}; the run has {list(run.channels)}")
+    problems += _unit_problems(run, wanted) + _nan_problems(run, wanted)
+    if settings is not None:
+        try:
+            settings.check_sample_rate(run.sample_rate_hz, run.duration_s)
+        except ValueError as error:
+            problems.append(f"sampling rate or record too short for the band: {error}")
+    span = _number("axle_span_m", axle_span_m, "m")
+    end_s = run.time_offset_s + (run.n_samples - 1) / run.sample_rate_hz
+    if end_s > run.speed.duration_s * (1 + 1e-9):
+        problems.append(
+            f"speed record too short: it covers 0 … {run.speed.duration_s:g} s but the "
+            f"accelerations run to t = {end_s:g} s"
+        )
+    else:
+        needed = float(run.speed.distance_m(end_s)) + span
+        if needed > run.geometry.length_m * (1 + 1e-9):
+            problems.append(
+                f"track shorter than the run: the geometry covers {run.geometry.length_m:g} m "
+                f"but the run travels {needed - span:g} m (+ axle span {span:g} m) = {needed:g} m"
+            )
+    if problems:
+        raise MeasuredDataError(f"{source}: " + "; ".join(problems))
+
+
+def save_run(run: MeasuredRun, path: str | os.PathLike[str]) -> Path:
+    """Write ``run`` to an HDF5 file in the documented format (atomic replace).
+
+    Returns:
+        The path written.
+    """
+    from susp_bo.data._hdf5 import write_run_file
+
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    os.close(handle)
+    try:
+        write_run_file(run, Path(temporary))
+        os.replace(temporary, target)
+    finally:
+        if os.path.exists(temporary):
+            os.remove(temporary)
+    return target
+
+
+def load_run(path: str | os.PathLike[str], *, allow_nan: bool = False) -> MeasuredRun:
+    """Read one run from an HDF5 file in the documented format.
+
+    Args:
+        path: the file.
+        allow_nan: keep NaN samples in the accelerations (dropouts) instead of
+            refusing the file; :func:`validate_run` still reports them.
+
+    Raises:
+        MeasuredDataError: anything malformed, naming the file and the item.
+    """
+    from susp_bo.data._hdf5 import read_run_file
+
+    run = read_run_file(Path(path))
+    if not allow_nan:
+        problems = _nan_problems(run, run.channels)
+        if problems:
+            raise MeasuredDataError(f"{path}: " + "; ".join(problems))
+    return run
+
+
+def load_runs(
+    folder: str | os.PathLike[str],
+    channels: Sequence[str] | None = None,
+    *,
+    allow_nan: bool = False,
+) -> list[MeasuredRun]:
+    """Read every ``*.h5`` / ``*.hdf5`` run in ``folder``, sorted by file name.
+
+    Args:
+        folder: the folder.
+        channels: channels to keep (in this order); None requires every file to
+            have the first file's channel set and orders them as the first file.
+        allow_nan: as in :func:`load_run`.
+
+    Raises:
+        MeasuredDataError: no runs, an unreadable run, or inconsistent channels.
+    """
+    directory = Path(folder)
+    if not directory.is_dir():
+        raise MeasuredDataError(f"{directory}: not a folder of measured runs")
+    paths = sorted(p for p in directory.iterdir() if p.suffix in {".h5", ".hdf5"} and p.is_file())
+    if not paths:
+        raise MeasuredDataError(f"{directory}: holds no measured runs (*.h5, *.hdf5)")
+    runs = [load_run(p, allow_nan=allow_nan) for p in paths]
+    wanted = tuple(runs[0].channels) if channels is None else tuple(channels)
+    selected = []
+    for path, run in zip(paths, runs):
+        if channels is None and set(run.channels) != set(wanted):
+            raise MeasuredDataError(
+                f"{path}: channel set differs from {paths[0].name}: missing "
+                f"{sorted(set(wanted) - set(run.channels))}, extra "
+                f"{sorted(set(run.channels) - set(wanted))}"
+            )
+        try:
+            selected.append(run.select(wanted))
+        except MeasuredDataError as error:
+            raise MeasuredDataError(f"{path}: {error}") from None
+    return selected
+
+
+def runs_channels(runs: Sequence[MeasuredRun]) -> tuple[str, ...]:
+    """The common channel tuple of runs that share one (as returned by :func:`load_runs`)."""
+    if not runs:
+        raise MeasuredDataError("no runs given")
+    first = runs[0].channels
+    for index, run in enumerate(runs):
+        if run.channels != first:
+            raise MeasuredDataError(f"run {index}: channels {run.channels} differ from {first}")
+    return first

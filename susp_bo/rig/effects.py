@@ -1,0 +1,53 @@
+"""Extension point for optional physical effects (carbody bending, wheel out-of-roundness, …).
+
+A rig file may carry ``[effects.<name>]`` tables (parsed into ``RigSpec.effects``).
+Each name must be registered here with a function that adds its elements or
+coordinates to the assembly builder; both the PyBullet world and the linearised
+model are built from that assembly, so an effect is added once and appears in
+both. No effects are registered yet (a later issue adds them); an unknown effect
+name is an error before any simulation runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+EffectHook = Callable[[Any, Any, dict[str, Any]], None]
+"""``hook(spec, builder, options)``: mutate the assembly builder for one effect."""
+
+_REGISTRY: dict[str, EffectHook] = {}
+
+
+def register_effect(name: str) -> Callable[[EffectHook], EffectHook]:
+    """Decorator registering ``hook`` as the implementation of effect ``name``."""
+
+    def decorate(hook: EffectHook) -> EffectHook:
+        if name in _REGISTRY:
+            raise ValueError(f"effect {name!r} is already registered")
+        _REGISTRY[name] = hook
+        return hook
+
+    return decorate
+
+
+def available_effects() -> tuple[str, ...]:
+    """Names of the registered effects, sorted."""
+    return tuple(sorted(_REGISTRY))
+
+
+def apply_effects(spec: Any, builder: Any) -> None:
+    """Apply every effect of ``spec.effects`` whose table has ``enabled`` true (default true).
+
+    Raises:
+        ValueError: an effect name that is not registered.
+    """
+    for name, options in getattr(spec, "effects", {}).items():
+        if not options.get("enabled", True):
+            continue
+        if name not in _REGISTRY:
+            raise ValueError(
+                f"rig effect {name!r}: not available; registered effects: "
+                f"{', '.join(available_effects()) or '(none yet)'}"
+            )
+        _REGISTRY[name](spec, builder, dict(options))

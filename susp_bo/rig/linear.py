@@ -1,0 +1,346 @@
+"""Linearised frequency-domain model of a rig: the cross-check and the fast path.
+
+Built from the same :class:`~susp_bo.rig.assembly.Assembly` as the PyBullet
+world: mass, damping and stiffness matrices are ``Σ Gᵀ diag(slope) G`` over the
+element groups (bilinear dampers at their initial slope, dead bands at their
+slope at zero), the linear wheel–rail contact at speed V, and the series
+spring–damper strokes as first-order states. In state-space form
+``ż = A z + B x + B_d ẋ`` with ``z = [q, q̇, s]``, the accelerance of every
+sensor to a unit track input at each axle is solved per frequency; axle inputs
+are the same profile delayed by ``x_a / V``.
+
+* :meth:`LinearisedRig.spectra`: expected Welch log-amplitude spectra for
+  random track with the German PSDs (vertical, cross-level and alignment taken
+  as independent), PSD ``S_t(f) = S(Ω) 2π / V`` with ``Ω = 2π f / V``.
+* :meth:`LinearisedRig.response`: time signals for a given track realization
+  (FFT filtering of the axle inputs), for a like-for-like check against PyBullet.
+* :meth:`LinearisedRig.modes`: complex modes named by their dominant body motion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+from numpy.typing import NDArray
+
+from susp_bo.rig.assembly import INPUTS_PER_AXLE, Assembly, build_assembly
+from susp_bo.rig.response import RigResponse
+from susp_bo.rig.sensors import sample_decimated
+from susp_bo.rig.spectra import Spectra, SpectrumSettings
+from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.track import AxleExcitation, TrackGeometry, TrackPSD
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+_COORDINATE_MEANING = {"y": "lateral", "z": "bounce", "roll": "roll", "pitch": "pitch",
+                       "yaw": "yaw"}
+_PSD_COMPONENTS = ("vertical", "cross_level", "alignment")
+
+
+@dataclass(frozen=True)
+class Mode:
+    """A mode of the linearised vehicle: name by dominant motion, frequency, damping ratio."""
+
+    name: str
+    frequency_hz: float
+    damping_ratio: float
+    energy_share: float
+
+
+@dataclass(frozen=True)
+class StateSpace:
+    """``ż = A z + B x + B_d ẋ``, sensors ``y = C_a q̈ + C_d q`` (see module docstring)."""
+
+    a: FloatArray
+    b: FloatArray
+    b_rate: FloatArray
+    n_dofs: int
+    assembly: Assembly
+
+
+def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
+    """Linearise an assembly about the static equilibrium at speed ``speed_m_s`` (m/s)."""
+    if not speed_m_s > 0:
+        raise ValueError(f"speed_m_s: got {speed_m_s}; must be > 0 m/s")
+    n, n_in = assembly.n_dofs, assembly.n_inputs
+    k = np.zeros((n, n))
+    c = np.zeros((n, n))
+    k_in = np.zeros((n, n_in))
+    c_in = np.zeros((n, n_in))
+    for elements in (assembly.springs, assembly.dead_bands):
+        g, h, slope = elements.group.coordinates, elements.group.inputs, elements.slope()
+        k += g.T @ (slope[:, None] * g)
+        k_in -= g.T @ (slope[:, None] * h)
+    g, h, slope = assembly.dampers.group.coordinates, assembly.dampers.group.inputs, \
+        assembly.dampers.slope()
+    c += g.T @ (slope[:, None] * g)
+    c_in -= g.T @ (slope[:, None] * h)
+    contact = assembly.contact.matrices(n, n_in, speed_m_s)
+    k += contact["stiffness"]
+    c += contact["damping"]
+    k_in += contact["input_stiffness"]
+    c_in += contact["input_damping"]
+    series = assembly.series
+    gs, hs, ks, cs = series.group.coordinates, series.group.inputs, series.stiffness, \
+        series.damping
+    n_s = series.group.size
+    k += gs.T @ (ks[:, None] * gs)
+    k_in -= gs.T @ (ks[:, None] * hs)
+    m_inv = 1.0 / assembly.mass_diagonal
+    size = 2 * n + n_s
+    a = np.zeros((size, size))
+    a[:n, n:2 * n] = np.eye(n)
+    a[n:2 * n, :n] = -m_inv[:, None] * k
+    a[n:2 * n, n:2 * n] = -m_inv[:, None] * c
+    a[n:2 * n, 2 * n:] = m_inv[:, None] * (gs.T * ks[None, :])  # + Gᵀ k_s s
+    rate = (ks / cs)[:, None]
+    a[2 * n:, :n] = rate * gs
+    a[2 * n:, 2 * n:] = -np.diag(ks / cs)
+    b = np.zeros((size, n_in))
+    b_rate = np.zeros((size, n_in))
+    b[n:2 * n] = m_inv[:, None] * k_in
+    b_rate[n:2 * n] = m_inv[:, None] * c_in
+    b[2 * n:] = rate * hs
+    return StateSpace(a, b, b_rate, n, assembly)
+
+
+def sensor_transfer(system: StateSpace, frequencies_hz: FloatArray,
+                    sample_rate_hz: float | None = None) -> ComplexArray:
+    """Sensor response to unit harmonic inputs: (F x C x n_in), (m/s²) per input unit.
+
+    With ``sample_rate_hz``, the sensor model of the time-domain rig is included:
+    accelerations averaged over one sample interval (sinc) and gravity pick-up
+    averaged over its end points (cosine).
+    """
+    f = np.asarray(frequencies_hz, dtype=np.float64)
+    omega = 2.0 * np.pi * f
+    n = system.n_dofs
+    size = system.a.shape[0]
+    lhs = 1j * omega[:, None, None] * np.eye(size)[None] - system.a[None]
+    rhs = system.b[None] + 1j * omega[:, None, None] * system.b_rate[None]
+    z = np.linalg.solve(lhs, rhs)  # (F x size x n_in)
+    q = z[:, :n]
+    accel = 1j * omega[:, None, None] * z[:, n:2 * n]
+    acc_part = np.einsum("cn,fni->fci", system.assembly.sensor_acceleration, accel)
+    disp_part = np.einsum("cn,fni->fci", system.assembly.sensor_displacement, q)
+    if sample_rate_hz is not None:
+        acc_part = acc_part * np.sinc(f / sample_rate_hz)[:, None, None]
+        disp_part = disp_part * np.cos(np.pi * f / sample_rate_hz)[:, None, None]
+    return acc_part + disp_part
+
+
+def _hann_kernel(offsets_hz: FloatArray, segment_s: float) -> FloatArray:
+    """|Ŵ(ν)|² of a unit-power Hann window of length T, normalised to unit area (1/Hz)."""
+    x = offsets_hz * segment_s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.sinc(x) / (1.0 - x * x)
+    w = np.where(np.isclose(np.abs(x), 1.0), 0.5, w)
+    kernel = w * w
+    return kernel / (np.sum(kernel) * (offsets_hz[1] - offsets_hz[0]))
+
+
+class LinearisedRig:
+    """Frequency-domain model of a rig spec (same elements as the PyBullet world).
+
+    Args:
+        spec: the rig spec.
+    """
+
+    def __init__(self, spec: RigSpec) -> None:
+        self.spec = spec
+
+    def _system(self, parameters: Mapping[str, float] | None, speed_m_s: float) -> StateSpace:
+        spec = self.spec.with_parameters(parameters)
+        return state_space(build_assembly(spec), speed_m_s)
+
+    def eigenvalues(self, parameters: Mapping[str, float] | None = None,
+                    speed_m_s: float | None = None) -> ComplexArray:
+        """Eigenvalues of the state matrix (1/s); stable when every real part is < 0."""
+        speed = self.spec.simulation.speed_m_s if speed_m_s is None else speed_m_s
+        return np.linalg.eigvals(self._system(parameters, speed).a)
+
+    def modes(self, parameters: Mapping[str, float] | None = None,
+              speed_m_s: float | None = None) -> list[Mode]:
+        """Oscillatory modes, sorted by frequency, named ``<body kind>_<motion>``.
+
+        The name is the (body kind, coordinate) pair with the largest share of the
+        mode's kinetic energy, e.g. ``carbody_bounce``, ``bogie_pitch``.
+        """
+        speed = self.spec.simulation.speed_m_s if speed_m_s is None else speed_m_s
+        system = self._system(parameters, speed)
+        values, vectors = np.linalg.eig(system.a)
+        n = system.n_dofs
+        assembly = system.assembly
+        labels = [_label(name) for name in assembly.dof_names]
+        modes = []
+        for value, vector in zip(values, vectors.T):
+            if value.imag <= 1e-6:
+                continue
+            energy = assembly.mass_diagonal * np.abs(vector[n:2 * n]) ** 2
+            shares: dict[str, float] = {}
+            for label, e in zip(labels, energy):
+                shares[label] = shares.get(label, 0.0) + float(e)
+            total = sum(shares.values())
+            name = max(shares, key=shares.__getitem__)
+            modes.append(Mode(name, float(abs(value)) / (2 * np.pi),
+                              float(-value.real / abs(value)), shares[name] / total))
+        return sorted(modes, key=lambda m: m.frequency_hz)
+
+    def modal_frequencies_hz(self, parameters: Mapping[str, float] | None = None,
+                             ) -> dict[str, float]:
+        """Undamped natural frequencies (Hz) of the vehicle on rigid track, by mode name.
+
+        Dampers are removed (the series yaw dampers with them), the wheelsets are
+        held on the track centre line; the lowest frequency of each named kind is
+        kept, e.g. ``carbody_bounce``, ``carbody_pitch``, ``carbody_lateral``
+        (lower sway), ``carbody_roll`` (upper sway), ``bogie_bounce``, ``bogie_pitch``.
+        This is the usual definition of the "uncoupled" modes quoted in the literature.
+        """
+        assembly = build_assembly(self.spec.with_parameters(parameters))
+        n = assembly.n_dofs
+        k = np.zeros((n, n))
+        for elements in (assembly.springs, assembly.dead_bands):
+            g, slope = elements.group.coordinates, elements.slope()
+            k += g.T @ (slope[:, None] * g)
+        free = [i for i, name in enumerate(assembly.dof_names) if not name.startswith("wheelset")]
+        scale = 1.0 / np.sqrt(assembly.mass_diagonal[free])
+        values, vectors = np.linalg.eigh(scale[:, None] * k[np.ix_(free, free)] * scale[None, :])
+        labels = [_label(assembly.dof_names[i]) for i in free]
+        result: dict[str, float] = {}
+        for value, vector in sorted(zip(values, vectors.T), key=lambda pair: pair[0]):
+            shares: dict[str, float] = {}
+            for label, share in zip(labels, vector**2):
+                shares[label] = shares.get(label, 0.0) + float(share)
+            name = max(shares, key=shares.__getitem__)
+            result.setdefault(name, float(np.sqrt(max(value, 0.0))) / (2 * np.pi))
+        return result
+
+    def psd(self, frequencies_hz: FloatArray, parameters: Mapping[str, float] | None = None,
+            psd: TrackPSD | None = None, speed_m_s: float | None = None,
+            components: tuple[str, ...] = INPUTS_PER_AXLE) -> FloatArray:
+        """One-sided acceleration PSD of every sensor, (F x C) (m/s²)²/Hz, on random track.
+
+        Args:
+            frequencies_hz: where to evaluate (F,) Hz, > 0.
+            parameters: named parameter values (default: the rig's).
+            psd: track spectra (default: the rig's track quality).
+            speed_m_s: constant speed (default: the rig's).
+            components: track inputs to include (``vertical``, ``cross_level``, ``alignment``).
+        """
+        speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
+        psd = TrackPSD(self.spec.simulation.track_quality) if psd is None else psd
+        fine = np.asarray(frequencies_hz, dtype=np.float64)
+        system = self._system(parameters, speed)
+        transfer = sensor_transfer(system, fine, self.spec.simulation.sample_rate_hz)
+        axles = system.assembly.axle_positions_m
+        omega = 2.0 * np.pi * fine
+        delays = np.exp(1j * omega[:, None] * axles[None, :] / speed)  # (F x n_axles)
+        wavenumber = omega / speed
+        psd_time = {
+            "vertical": psd.vertical(wavenumber), "cross_level": psd.cross_level(wavenumber),
+            "alignment": psd.alignment(wavenumber),
+        }
+        power = np.zeros((fine.size, transfer.shape[1]))
+        for c, component in enumerate(INPUTS_PER_AXLE):
+            if component not in components:
+                continue
+            columns = transfer[:, :, c::len(INPUTS_PER_AXLE)]  # (F x C x n_axles)
+            combined = np.einsum("fca,fa->fc", columns, delays)
+            power += np.abs(combined) ** 2 * (psd_time[component] * 2 * np.pi / speed)[:, None]
+        return power
+
+    def spectra(self, parameters: Mapping[str, float] | None = None,
+                psd: TrackPSD | None = None, speed_m_s: float | None = None,
+                settings: SpectrumSettings | None = None) -> Spectra:
+        """Expected Welch log-amplitude spectra on random track (the fast path).
+
+        Args:
+            parameters: named parameter values (default: the rig's).
+            psd: track spectra (default: the rig's track quality).
+            speed_m_s: constant speed (default: the rig's).
+            settings: spectrum settings (default: the rig's).
+
+        Returns:
+            Spectra (C x F) in ln((m/s²)/√Hz): the PSD convolved with the Hann
+            window's kernel (what Welch estimates), band-averaged like spectra.py.
+        """
+        settings = self.spec.spectrum if settings is None else settings
+        resolution = 1.0 / settings.segment_s
+        step = resolution / 8.0
+        fine = np.arange(1, int(np.ceil((settings.f_max_hz + 6 * resolution) / step)) + 1) * step
+        power = self.psd(fine, parameters, psd, speed_m_s)
+        # expected Welch estimate at the Welch bins, then the band average of spectra.py
+        bins = np.arange(0.0, settings.f_max_hz + 2 * resolution, resolution)
+        both = np.concatenate([-fine[::-1], fine])
+        full = np.concatenate([power[::-1], power])
+        welch = np.empty((bins.size, power.shape[1]))
+        for i, f0 in enumerate(bins):
+            kernel = _hann_kernel(both - f0, settings.segment_s)
+            welch[i] = 0.5 * (kernel @ full) * step * 2.0 if f0 > 0 else 0.0
+        band = _band_average(welch.T, resolution, settings.band_edges_hz())
+        return Spectra(settings.frequencies_hz(), self.spec.channels, 0.5 * np.log(band))
+
+    def response(self, geometry: TrackGeometry, speed_m_s: float,
+                 parameters: Mapping[str, float] | None = None,
+                 duration_s: float | None = None, warm_up_s: float | None = None,
+                 time_step_s: float | None = None) -> RigResponse:
+        """Sensor signals of the linear model on one track realization (constant speed).
+
+        Same time grid, axle inputs and sensor averaging as :class:`~susp_bo.rig.Rig`
+        so that both can be compared sample for sample. The inputs are treated as
+        periodic over the run (FFT); the warm-up absorbs the wrap-around transient.
+        """
+        from susp_bo.rig.simulator import excitation_for_run
+
+        sim = self.spec.simulation
+        duration = sim.duration_s if duration_s is None else duration_s
+        warm = sim.warm_up_s if warm_up_s is None else warm_up_s
+        dt = sim.time_step_s if time_step_s is None else time_step_s
+        system = self._system(parameters, speed_m_s)
+        excitation, per_sample = excitation_for_run(
+            system.assembly, geometry, speed_m_s, warm + duration, dt, sim.sample_rate_hz)
+        inputs = _input_matrix(excitation)
+        n_t = inputs.shape[1]
+        freqs = scipy.fft.rfftfreq(n_t, dt)
+        spectrum = scipy.fft.rfft(inputs, axis=1)  # (n_in x F)
+        rate_spectrum = scipy.fft.rfft(_input_matrix(excitation, rates=True), axis=1)
+        omega = 2 * np.pi * freqs
+        size = system.a.shape[0]
+        lhs = 1j * omega[:, None, None] * np.eye(size)[None] - system.a[None]
+        forcing = system.b @ spectrum + system.b_rate @ rate_spectrum  # (size x F)
+        states = np.linalg.solve(lhs, forcing.T[:, :, None])[:, :, 0].T  # (size x F)
+        n = system.n_dofs
+        q = scipy.fft.irfft(states[:n], n=n_t, axis=1)
+        qdot = scipy.fft.irfft(states[n:2 * n], n=n_t, axis=1)
+        start = round(warm / (dt * per_sample)) * per_sample
+        time, signals = sample_decimated(system.assembly, q[:, start::per_sample].T,
+                                         qdot[:, start::per_sample].T, per_sample * dt)
+        return RigResponse(time + start * dt, system.assembly.channels, signals,
+                           sim.sample_rate_hz, self.spec.spectrum)
+
+
+def _label(dof_name: str) -> str:
+    """``bogie_front.z`` -> ``bogie_bounce``: body kind and motion of a coordinate."""
+    body, coordinate = dof_name.split(".")
+    kind = "carbody" if body == "carbody" else body.split("_")[0]
+    return f"{kind}_{_COORDINATE_MEANING[coordinate]}"
+
+
+def _input_matrix(excitation: AxleExcitation, rates: bool = False) -> FloatArray:
+    """Axle inputs in assembly order ``[vertical, cross_level, alignment]`` per axle."""
+    names = (("vertical_rate_m_s", "cross_level_rate_rad_s", "alignment_rate_m_s") if rates
+             else ("vertical_m", "cross_level_rad", "alignment_m"))
+    arrays = [getattr(excitation, name) for name in names]  # each (n_axles x n_t)
+    return np.stack(arrays, axis=1).reshape(-1, excitation.time_s.size)
+
+
+def _band_average(psd: FloatArray, bin_width_hz: float, edges_hz: FloatArray) -> FloatArray:
+    """Mean of a PSD on Welch bins over each band, bins as cells (as spectra.py)."""
+    cell_low = (np.arange(psd.shape[-1]) - 0.5) * bin_width_hz
+    overlap = np.minimum(edges_hz[1:, None], cell_low[None, :] + bin_width_hz) - np.maximum(
+        edges_hz[:-1, None], cell_low[None, :])
+    weights = np.clip(overlap, 0.0, None) / np.diff(edges_hz)[:, None]
+    return psd @ weights.T

@@ -1,0 +1,230 @@
+"""The rig ``h_sim(x, w)``: PyBullet time integration, sensors, spectra.
+
+Example:
+    >>> from susp_bo.rig import Rig, synthetic_track
+    >>> with Rig("hst_trailer") as rig:                               # doctest: +SKIP
+    ...     track = synthetic_track(rig.spec, seed=1)
+    ...     spectra = rig.spectra(track, parameters={"yaw_damper_damping": 3e6})
+
+Every input is checked before the first step (parameters, speed, track length,
+band vs Nyquist and record length); a run that diverges raises
+:class:`SimulationFailed` with the reason instead of returning numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import pybullet
+from numpy.typing import NDArray
+
+from susp_bo.rig.assembly import Assembly, build_assembly
+from susp_bo.rig.dynamics import ForceModel
+from susp_bo.rig.response import RigResponse, SimulationFailed
+from susp_bo.rig.sensors import sample_decimated
+from susp_bo.rig.spec import RigSpec, load_rig_spec
+from susp_bo.rig.spectra import Spectra, SpectrumSettings
+from susp_bo.rig.track import AxleExcitation, SpeedProfile, TrackGeometry, axle_excitation
+from susp_bo.rig.world import VehicleWorld
+
+FloatArray = NDArray[np.float64]
+SpeedInput = float | SpeedProfile
+__all__ = ["Rig", "RigResponse", "SimulationFailed", "excitation_for_run", "synthetic_track"]
+
+
+def _speed_profile(speed: SpeedInput, total_s: float) -> SpeedProfile:
+    if isinstance(speed, SpeedProfile):
+        return speed
+    value = float(speed)
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"speed: got {speed!r} m/s; must be finite and > 0")
+    return SpeedProfile.constant(value, total_s)
+
+
+def excitation_for_run(assembly: Assembly, geometry: TrackGeometry, speed: SpeedInput,
+                       total_s: float, time_step_s: float, sample_rate_hz: float,
+                       ) -> tuple[AxleExcitation, int]:
+    """Axle inputs at every step time ``0, dt, …, total_s`` and the steps per sample.
+
+    Raises:
+        ValueError: speed <= 0, a track too short for the run, bad timing.
+    """
+    profile = _speed_profile(speed, total_s)
+    if profile.duration_s < total_s * (1 - 1e-12):
+        raise ValueError(
+            f"speed: the speed record lasts {profile.duration_s} s; the run needs {total_s} s"
+        )
+    n_steps = round(total_s / time_step_s)
+    per_sample = round(1.0 / (time_step_s * sample_rate_hz))
+    n_steps -= n_steps % per_sample
+    times = np.arange(n_steps + 1) * time_step_s
+    return axle_excitation(geometry, profile, assembly.axle_positions_m, times), per_sample
+
+
+def synthetic_track(spec: RigSpec, seed: int, speed_m_s: float | None = None,
+                    duration_s: float | None = None, quality: str | None = None,
+                    ) -> TrackGeometry:
+    """A German-PSD track long enough for one default run of ``spec`` (seeded)."""
+    sim = spec.simulation
+    speed = sim.speed_m_s if speed_m_s is None else speed_m_s
+    duration = sim.duration_s if duration_s is None else duration_s
+    span = 2.0 * (spec.parameters["bogie_half_pivot_spacing"]
+                  + spec.parameters["bogie_half_wheelbase"])
+    length = speed * (sim.warm_up_s + duration) + span + 10.0
+    return TrackGeometry.synthetic(quality=quality or sim.track_quality, length_m=length,
+                                   seed=seed)
+
+
+def integrate(world: VehicleWorld, forces: ForceModel, excitation: AxleExcitation,
+              speed_m_s: FloatArray, record_every: int, limit: float,
+              names: tuple[str, ...]) -> tuple[FloatArray, FloatArray]:
+    """Step the world through the excitation; states every ``record_every`` steps.
+
+    Args:
+        world: a built world (state at rest or set by the caller).
+        forces: the force model of the same assembly.
+        excitation: inputs at the step times (n_steps + 1 samples).
+        speed_m_s: speed at the step times (n_steps + 1,).
+        record_every: steps between recorded states.
+        limit: divergence threshold on |q| (m or rad).
+        names: coordinate names for messages.
+
+    Returns:
+        ``(q, q̇)`` each (n_records x n) at steps 0, record_every, …, n_steps.
+
+    Raises:
+        SimulationFailed: non-finite state or |q| beyond ``limit``.
+    """
+    n_in = excitation.n_axles * 3
+    x_all = np.empty((excitation.time_s.size, n_in))
+    xd_all = np.empty_like(x_all)
+    for c, (value, rate) in enumerate((("vertical_m", "vertical_rate_m_s"),
+                                       ("cross_level_rad", "cross_level_rate_rad_s"),
+                                       ("alignment_m", "alignment_rate_m_s"))):
+        x_all[:, c::3] = getattr(excitation, value).T
+        xd_all[:, c::3] = getattr(excitation, rate).T
+    n_steps = excitation.time_s.size - 1
+    dt = world.time_step_s
+    client = world.client._client  # raw pybullet calls: no per-call wrapper overhead
+    body, joints = world.body_id, world.joints
+    get_states = pybullet.getJointStates
+    set_torques = pybullet.setJointMotorControlArray
+    step = pybullet.stepSimulation
+    torque = pybullet.TORQUE_CONTROL
+    stroke = np.zeros(forces.n_strokes)
+    records = n_steps // record_every + 1
+    q_out = np.empty((records, forces.n))
+    qd_out = np.empty((records, forces.n))
+    for j in range(n_steps + 1):
+        states = np.array([s[:2] for s in get_states(body, joints, physicsClientId=client)])
+        q, qd = states[:, 0], states[:, 1]
+        if j % record_every == 0:
+            k = j // record_every
+            q_out[k], qd_out[k] = q, qd
+            worst = np.max(np.abs(q))
+            if not (np.isfinite(worst) and np.all(np.isfinite(qd)) and worst <= limit):
+                index = int(np.argmax(np.where(np.isfinite(q), np.abs(q), np.inf)))
+                raise SimulationFailed(
+                    f"diverged at t = {j * dt:.3f} s: {names[index]} = {q[index]:.4g} "
+                    f"(limit {limit} m or rad)"
+                )
+        if j == n_steps:
+            break
+        generalised, stroke_rate = forces(q, qd, x_all[j], xd_all[j], speed_m_s[j], stroke)
+        stroke += dt * stroke_rate
+        set_torques(body, joints, torque, forces=generalised, physicsClientId=client)
+        step(physicsClientId=client)
+    return q_out, qd_out
+
+
+class Rig:
+    """The vehicle rig: one PyBullet DIRECT client, many runs.
+
+    Args:
+        spec: a rig spec, or a rig name / path for :func:`load_rig_spec`.
+        linear_elements: use the slopes of every nonlinear element (for the
+            cross-check against :class:`~susp_bo.rig.linear.LinearisedRig`).
+    """
+
+    def __init__(self, spec: RigSpec | str | Path, linear_elements: bool = False) -> None:
+        self.spec = spec if isinstance(spec, RigSpec) else load_rig_spec(spec)
+        self.linear_elements = linear_elements
+        self._world: VehicleWorld | None = VehicleWorld(self.spec.simulation.time_step_s)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """Sensor channel names (C,)."""
+        return self.spec.channels
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """The calibration parameter names (q,)."""
+        return self.spec.calibration_names
+
+    def __enter__(self) -> Rig:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release the PyBullet client (idempotent)."""
+        if self._world is not None:
+            self._world.close()
+            self._world = None
+
+    def simulate(self, geometry: TrackGeometry, speed: SpeedInput | None = None,
+                 parameters: Mapping[str, float] | None = None,
+                 duration_s: float | None = None) -> RigResponse:
+        """Run the vehicle over a track and record the sensors.
+
+        Args:
+            geometry: the track.
+            speed: constant speed (m/s) or a :class:`SpeedProfile` (its duration is the
+                run, warm-up included); default the rig's speed.
+            parameters: named parameter values (validated against C_w).
+            duration_s: recorded time after the warm-up (s); default the rig's.
+
+        Returns:
+            The response after the warm-up.
+
+        Raises:
+            ValueError: bad input (detected before any step).
+            SimulationFailed: divergence.
+        """
+        if self._world is None:
+            raise RuntimeError("Rig: closed")
+        spec = self.spec.with_parameters(parameters)
+        sim = spec.simulation
+        speed = sim.speed_m_s if speed is None else speed
+        if isinstance(speed, SpeedProfile):
+            total = speed.duration_s
+            duration = total - sim.warm_up_s
+        else:
+            duration = sim.duration_s if duration_s is None else float(duration_s)
+            total = sim.warm_up_s + duration
+        if not duration > 0:
+            raise ValueError(f"duration_s: got {duration} s after the warm-up; must be > 0")
+        spec.spectrum.check_sample_rate(sim.sample_rate_hz, duration)
+        assembly = build_assembly(spec)
+        excitation, per_sample = excitation_for_run(
+            assembly, geometry, speed, total, sim.time_step_s, sim.sample_rate_hz)
+        profile = _speed_profile(speed, total)
+        speeds = profile.speed_at(excitation.time_s)
+        self._world.build(assembly)
+        q, qd = integrate(self._world, ForceModel(assembly, self.linear_elements), excitation,
+                          speeds, per_sample, sim.max_displacement_m, assembly.dof_names)
+        start = round(sim.warm_up_s / (sim.time_step_s * per_sample))
+        time, signals = sample_decimated(assembly, q[start:], qd[start:],
+                                         per_sample * sim.time_step_s)
+        return RigResponse(time + start * per_sample * sim.time_step_s, assembly.channels,
+                           signals, sim.sample_rate_hz, spec.spectrum)
+
+    def spectra(self, geometry: TrackGeometry, speed: SpeedInput | None = None,
+                parameters: Mapping[str, float] | None = None,
+                settings: SpectrumSettings | None = None) -> Spectra:
+        """Log-amplitude spectra of a run (settings default to the rig's)."""
+        return self.simulate(geometry, speed, parameters).spectra(settings)

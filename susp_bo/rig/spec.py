@@ -1,0 +1,435 @@
+"""Rig specs: a vehicle described as data (TOML), parsed and validated.
+
+A rig file has engineer-readable sections (``[carbody]``, ``[bogie]``,
+``[wheelset]``, ``[primary]``, ``[secondary]``, ``[yaw_damper]``,
+``[anti_roll_bar]``, ``[bump_stop]``, ``[contact]``); every number in them is a
+*named parameter* ``<section>_<key>``, e.g. ``[primary] vertical_stiffness`` is
+``primary_vertical_stiffness``. Around them: ``[rig]`` (name, topology,
+citation), ``[[sensors]]``, ``[simulation]``, ``[spectrum]``, ``[effects]``
+(optional physical effects, parsed but interpreted by the effect registry) and
+``[[calibration.parameters]]`` (the admissible set C_w: name, lower, upper,
+reference, unit, description).
+
+Every check runs when the spec is built, so bad input fails before any
+simulation: unknown names, non-finite values, non-positive masses/inertias,
+negative stiffnesses/dampings, calibration values outside their interval.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from susp_bo.rig.catalog import rig_path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+if TYPE_CHECKING:
+    from susp_bo.rig.spectra import SpectrumSettings
+
+PARAMETER_SECTIONS = (
+    "carbody",
+    "bogie",
+    "wheelset",
+    "primary",
+    "secondary",
+    "yaw_damper",
+    "anti_roll_bar",
+    "bump_stop",
+    "contact",
+)
+SENSOR_DIRECTIONS = ("vertical", "lateral")
+TRACK_QUALITIES = ("low", "high")
+# Parameter-name fragments and the sign they require (first match wins).
+_POSITIVE_WORDS = ("mass", "inertia", "radius", "coefficient", "spacing", "wheelbase")
+_NON_NEGATIVE_WORDS = ("stiffness", "damping", "knee", "ratio", "gap", "smoothing", "conicity")
+
+
+def _number(where: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where}: got {value!r}; must be a number")
+    return float(value)
+
+
+def check_parameter_value(name: str, value: float) -> None:
+    """Raise ValueError unless ``value`` is admissible for a parameter called ``name``.
+
+    Rules by meaning: finite always; names containing mass, inertia, radius,
+    coefficient, spacing or wheelbase must be > 0; stiffness, damping, knee,
+    ratio, gap, smoothing or conicity must be >= 0.
+    """
+    if not math.isfinite(value):
+        raise ValueError(f"parameter {name}: got {value}; must be finite")
+    if any(word in name for word in _POSITIVE_WORDS):
+        if value <= 0.0:
+            raise ValueError(f"parameter {name}: got {value}; must be > 0")
+    elif any(word in name for word in _NON_NEGATIVE_WORDS) and value < 0.0:
+        raise ValueError(f"parameter {name}: got {value}; must be >= 0")
+
+
+@dataclass(frozen=True)
+class CalibrationParameter:
+    """One component of the calibrated parameter ``w`` and its admissible interval.
+
+    Args:
+        name: a named rig parameter, e.g. ``primary_vertical_stiffness``.
+        lower: lower bound of the admissible interval (physical unit).
+        upper: upper bound, > lower.
+        reference: nominal value, within [lower, upper].
+        unit: physical unit, e.g. ``N/m``.
+        description: one line for engineers.
+    """
+
+    name: str
+    lower: float
+    upper: float
+    reference: float
+    unit: str = ""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        where = f"CalibrationParameter {self.name!r}"
+        for key in ("lower", "upper", "reference"):
+            number = _number(f"{where}.{key}", getattr(self, key))
+            if not math.isfinite(number):
+                raise ValueError(f"{where}.{key}: got {number}; must be finite")
+            object.__setattr__(self, key, number)
+        if not self.lower < self.upper:
+            raise ValueError(f"{where}: lower {self.lower} must be < upper {self.upper}")
+        if not self.lower <= self.reference <= self.upper:
+            raise ValueError(
+                f"{where}.reference: got {self.reference}; must lie in "
+                f"[{self.lower}, {self.upper}]"
+            )
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """An accelerometer: a named point on a body measuring along one body axis.
+
+    Args:
+        name: channel name, e.g. ``carbody_front_vertical``.
+        body: body name (``carbody``, ``bogie_front``, ``bogie_rear``).
+        position_m: (x, y, z) in vehicle coordinates (x from the car centre, + forward;
+            z above the rail top), m.
+        direction: ``vertical`` or ``lateral`` (body axes z or y).
+    """
+
+    name: str
+    body: str
+    position_m: tuple[float, float, float]
+    direction: str
+
+    def __post_init__(self) -> None:
+        if self.direction not in SENSOR_DIRECTIONS:
+            raise ValueError(
+                f"sensor {self.name!r}.direction: got {self.direction!r}; allowed "
+                f"{', '.join(SENSOR_DIRECTIONS)}"
+            )
+        position = tuple(_number(f"sensor {self.name!r}.position_m", v) for v in self.position_m)
+        if len(position) != 3 or not all(math.isfinite(v) for v in position):
+            raise ValueError(
+                f"sensor {self.name!r}.position_m: got {self.position_m!r}; need 3 finite numbers"
+            )
+        object.__setattr__(self, "position_m", position)
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """Defaults of a time-domain run.
+
+    Args:
+        time_step_s: fixed PyBullet step (s), in (0, 0.01].
+        speed_m_s: default train speed (m/s), > 0.
+        duration_s: recorded time after the warm-up (s), > 0.
+        warm_up_s: discarded initial transient (s), >= 0.
+        sample_rate_hz: rate of the output signals (Hz); ``1/time_step_s`` must be
+            an integer multiple of it.
+        track_quality: ``low`` or ``high`` (German PSD) for synthetic tracks.
+        max_displacement_m: divergence threshold on any body displacement (m) or
+            rotation (rad); exceeding it raises SimulationFailed.
+    """
+
+    time_step_s: float = 0.002
+    speed_m_s: float = 83.33
+    duration_s: float = 30.0
+    warm_up_s: float = 5.0
+    sample_rate_hz: float = 100.0
+    track_quality: str = "low"
+    max_displacement_m: float = 0.2
+
+    def __post_init__(self) -> None:
+        limits = {
+            "time_step_s": (0.0, 0.01),
+            "speed_m_s": (0.0, 200.0),
+            "duration_s": (0.0, 1e5),
+            "sample_rate_hz": (0.0, 1e5),
+            "max_displacement_m": (0.0, 10.0),
+        }
+        for key, (low, high) in limits.items():
+            value = _number(f"SimulationSettings.{key}", getattr(self, key))
+            if not (math.isfinite(value) and low < value <= high):
+                raise ValueError(
+                    f"SimulationSettings.{key}: got {value}; allowed range ({low}, {high}]"
+                )
+            object.__setattr__(self, key, value)
+        warm = _number("SimulationSettings.warm_up_s", self.warm_up_s)
+        if not (math.isfinite(warm) and warm >= 0.0):
+            raise ValueError(f"SimulationSettings.warm_up_s: got {warm}; must be >= 0")
+        object.__setattr__(self, "warm_up_s", warm)
+        if self.track_quality not in TRACK_QUALITIES:
+            raise ValueError(
+                f"SimulationSettings.track_quality: got {self.track_quality!r}; allowed "
+                f"{', '.join(TRACK_QUALITIES)}"
+            )
+        ratio = 1.0 / (self.time_step_s * self.sample_rate_hz)
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ValueError(
+                f"SimulationSettings.sample_rate_hz: got {self.sample_rate_hz} Hz; "
+                f"1/time_step_s = {1.0 / self.time_step_s} Hz must be an integer multiple of it"
+            )
+
+    @property
+    def steps_per_sample(self) -> int:
+        """PyBullet steps per output sample."""
+        return round(1.0 / (self.time_step_s * self.sample_rate_hz))
+
+
+@dataclass(frozen=True)
+class RigSpec:
+    """A validated vehicle rig: named parameters, sensors, settings and C_w.
+
+    Args:
+        name: rig name.
+        topology: body/element layout interpreted by :mod:`susp_bo.rig.assembly`
+            (``two_bogie_car``).
+        parameters: every named parameter ``<section>_<key>`` -> value (SI units).
+        sensors: the accelerometers, in channel order.
+        simulation: time-domain defaults.
+        spectrum: the spectra settings (band Ω, Welch segments).
+        calibration: the admissible set C_w, q entries in calibration order.
+        effects: optional effect tables (``[effects.<name>]``), for the effect registry.
+        description: free text.
+        reference: the published source of the parameter set.
+    """
+
+    name: str
+    topology: str
+    parameters: dict[str, float]
+    sensors: tuple[SensorSpec, ...]
+    simulation: SimulationSettings
+    spectrum: SpectrumSettings
+    calibration: tuple[CalibrationParameter, ...]
+    effects: dict[str, dict[str, Any]] = field(default_factory=dict)
+    description: str = ""
+    reference: str = ""
+
+    def __post_init__(self) -> None:
+        from susp_bo.rig.assembly import required_parameters
+
+        params = {str(k): _number(f"parameter {k}", v) for k, v in self.parameters.items()}
+        for key, value in params.items():
+            check_parameter_value(key, value)
+        missing = [k for k in required_parameters(self.topology) if k not in params]
+        if missing:
+            raise ValueError(
+                f"rig {self.name!r}: missing parameters for topology {self.topology!r}: "
+                f"{', '.join(missing)}"
+            )
+        object.__setattr__(self, "parameters", params)
+        names = [c.name for c in self.calibration]
+        if len(set(names)) != len(names):
+            raise ValueError(f"rig {self.name!r}: calibration parameter names repeat: {names}")
+        for entry in self.calibration:
+            if entry.name not in params:
+                raise ValueError(
+                    f"rig {self.name!r}: calibration parameter {entry.name!r} is not a named "
+                    f"parameter of the rig; known: {', '.join(sorted(params))}"
+                )
+            value = params[entry.name]
+            if not entry.lower <= value <= entry.upper:
+                raise ValueError(
+                    f"parameter {entry.name}: got {value} {entry.unit}; outside the "
+                    f"admissible interval [{entry.lower}, {entry.upper}] {entry.unit}"
+                )
+        channels = [s.name for s in self.sensors]
+        if not channels or len(set(channels)) != len(channels):
+            raise ValueError(f"rig {self.name!r}: sensor names must be unique and non-empty")
+
+    def parameter_values(self) -> dict[str, float]:
+        """Every named parameter -> value (a copy)."""
+        return dict(self.parameters)
+
+    @property
+    def calibration_names(self) -> tuple[str, ...]:
+        """Names of the q calibration parameters, in order."""
+        return tuple(c.name for c in self.calibration)
+
+    @property
+    def calibration_bounds(self) -> NDArray[np.float64]:
+        """Admissible box C_w, (2 x q): row 0 lower, row 1 upper bounds."""
+        return np.array([[c.lower for c in self.calibration], [c.upper for c in self.calibration]])
+
+    @property
+    def calibration_reference(self) -> NDArray[np.float64]:
+        """Reference values of the calibration parameters, (q,)."""
+        return np.array([c.reference for c in self.calibration])
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """Sensor channel names, in order."""
+        return tuple(s.name for s in self.sensors)
+
+    def parameters_from_vector(self, w: NDArray[np.float64]) -> dict[str, float]:
+        """Map a calibration vector ``w`` (q,) to ``{name: value}``."""
+        values = np.asarray(w, dtype=np.float64).reshape(-1)
+        if values.size != len(self.calibration):
+            raise ValueError(
+                f"rig {self.name!r}: calibration vector has {values.size} entries; expected "
+                f"q = {len(self.calibration)} ({', '.join(self.calibration_names)})"
+            )
+        return dict(zip(self.calibration_names, (float(v) for v in values)))
+
+    def with_parameters(self, mapping: Mapping[str, float] | None) -> RigSpec:
+        """A copy with some named parameters changed (validated; C_w enforced).
+
+        Raises:
+            ValueError: unknown name, NaN/inf, negative stiffness or mass, or a
+                calibration parameter outside its admissible interval.
+        """
+        if not mapping:
+            return self
+        params = dict(self.parameters)
+        for key, value in mapping.items():
+            if key not in params:
+                raise ValueError(
+                    f"rig {self.name!r}: unknown parameter {key!r}; known parameters: "
+                    f"{', '.join(sorted(params))}"
+                )
+            params[key] = _number(f"parameter {key}", value)
+        return replace(self, parameters=params)
+
+    def with_simulation(self, **changes: Any) -> RigSpec:
+        """A copy with some :class:`SimulationSettings` fields changed."""
+        return replace(self, simulation=replace(self.simulation, **changes))
+
+    def to_dict(self) -> dict[str, Any]:
+        """A canonical, JSON-serialisable description (used for the fingerprint)."""
+        spectrum = self.spectrum
+        spectrum_dict = (
+            {k: getattr(spectrum, k) for k in spectrum.__dataclass_fields__}
+            if hasattr(spectrum, "__dataclass_fields__")
+            else repr(spectrum)
+        )
+        return {
+            "name": self.name,
+            "topology": self.topology,
+            "parameters": dict(sorted(self.parameters.items())),
+            "sensors": [
+                {"name": s.name, "body": s.body, "position_m": list(s.position_m),
+                 "direction": s.direction}
+                for s in self.sensors
+            ],
+            "simulation": {k: getattr(self.simulation, k)
+                           for k in self.simulation.__dataclass_fields__},
+            "spectrum": spectrum_dict,
+            "calibration": [
+                {"name": c.name, "lower": c.lower, "upper": c.upper, "reference": c.reference}
+                for c in self.calibration
+            ],
+            "effects": self.effects,
+        }
+
+    def fingerprint(self) -> str:
+        """sha256 (hex) of the canonical content: equal specs, equal fingerprints."""
+        text = json.dumps(self.to_dict(), sort_keys=True, default=repr)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
+    """Build a :class:`RigSpec` from the parsed TOML tables.
+
+    Args:
+        data: the TOML document as nested dicts.
+        source: file name used in error messages.
+
+    Raises:
+        ValueError: unknown sections or keys, missing tables, invalid values.
+    """
+    from susp_bo.rig.spectra import SpectrumSettings
+
+    known = {"rig", "sensors", "simulation", "spectrum", "effects", "calibration",
+             *PARAMETER_SECTIONS}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"{source}: unknown sections {unknown}; allowed {sorted(known)}")
+    rig = dict(data.get("rig", {}))
+    if "name" not in rig:
+        raise ValueError(f"{source}: [rig] needs a name")
+    parameters: dict[str, float] = {}
+    for section in PARAMETER_SECTIONS:
+        for key, value in data.get(section, {}).items():
+            parameters[f"{section}_{key}"] = _number(f"{source}: [{section}] {key}", value)
+    sensors = []
+    for entry in data.get("sensors", []):
+        try:
+            sensors.append(
+                SensorSpec(
+                    name=str(entry["name"]),
+                    body=str(entry["body"]),
+                    position_m=tuple(entry["position_m"]),
+                    direction=str(entry["direction"]),
+                )
+            )
+        except KeyError as error:
+            raise ValueError(f"{source}: [[sensors]] entry {entry!r} lacks {error}") from None
+    simulation = SimulationSettings(**data.get("simulation", {}))
+    spectrum = SpectrumSettings(**data.get("spectrum", {}))
+    calibration = []
+    for entry in data.get("calibration", {}).get("parameters", []):
+        calibration.append(CalibrationParameter(**entry))
+        name = entry["name"]
+        if name in parameters and not math.isclose(
+            parameters[name], calibration[-1].reference, rel_tol=1e-12
+        ):
+            raise ValueError(
+                f"{source}: calibration parameter {name!r} reference {entry['reference']} differs "
+                f"from the rig value {parameters[name]}"
+            )
+    return RigSpec(
+        name=str(rig["name"]),
+        topology=str(rig.get("topology", "two_bogie_car")),
+        parameters=parameters,
+        sensors=tuple(sensors),
+        simulation=simulation,
+        spectrum=spectrum,
+        calibration=tuple(calibration),
+        effects={str(k): dict(v) for k, v in data.get("effects", {}).items()},
+        description=str(rig.get("description", "")),
+        reference=str(rig.get("reference", "")),
+    )
+
+
+def load_rig_spec(name_or_path: str | Path) -> RigSpec:
+    """Load a rig by name (``"hst_trailer"``) or path to a TOML file.
+
+    Raises:
+        FileNotFoundError: no such rig.
+        ValueError: invalid content (the message names the file, the field and the value).
+    """
+    path = rig_path(name_or_path)
+    with path.open("rb") as handle:
+        data = tomllib.load(handle)
+    return parse_rig(data, source=path.name)

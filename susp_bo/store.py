@@ -1,0 +1,484 @@
+"""The evaluation store: every simulator run of a study, in one SQLite file.
+
+Simulator runs are the expensive resource, so every evaluation is written as it
+completes — one committed transaction per evaluation, WAL journal — and a study
+that is killed at any moment (``kill -9`` included) loses nothing that finished:
+a row is either committed whole or absent. On ``--resume`` the study looks every
+point up before running it (:meth:`EvaluationStore.lookup`); spectra come back
+bit-for-bit, so a resumed study computes exactly what an uninterrupted one does.
+
+A store belongs to one study. Its ``study`` table holds a fingerprint — rig,
+data, calibration parameter names and whatever else the caller passes, plus the
+store schema version and the package's major.minor version — and a store made
+for another rig, data set or an incompatible version is refused with
+:class:`StoreMismatchError` naming the key and both values.
+
+Failed evaluations, and what a resumed study does with them:
+
+- ``error`` — the task itself raised (the simulation diverged, the parameters
+  were refused). The simulator is deterministic, so running it again gives the
+  same failure: the failure is kept and reused on resume, exactly as an
+  uninterrupted run would have seen it.
+- ``crash`` — the worker process died or was lost (segfault, OOM killer, a
+  cluster node gone). That says nothing reliable about the parameters, so on
+  resume the evaluation is run again (:meth:`EvaluationStore.lookup` skips
+  crash rows unless asked); a success then replaces the crash row.
+
+A successful row is never overwritten. Only the process that owns the study
+writes to the store; workers return results and never open it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from types import TracebackType
+from typing import Literal
+
+import numpy as np
+
+from susp_bo import __version__
+
+STORE_SCHEMA_VERSION = "1"
+"""Bumped whenever the tables change incompatibly; part of every fingerprint."""
+
+FailureKind = Literal["error", "crash"]
+FAILURE_KINDS: tuple[str, ...] = ("error", "crash")
+
+_SCHEMA = (
+    """CREATE TABLE study (
+    key   TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+)""",
+    """CREATE TABLE evaluations (
+    id             INTEGER PRIMARY KEY AUTOINCREMENT,
+    key            TEXT NOT NULL UNIQUE,
+    parameters     BLOB NOT NULL,
+    parameters_json TEXT NOT NULL,
+    track_id       TEXT NOT NULL,
+    status         TEXT NOT NULL CHECK (status IN ('ok', 'failed')),
+    failure_kind   TEXT CHECK (failure_kind IN ('error', 'crash')),
+    failure_reason TEXT,
+    spectra        BLOB,
+    spectra_shape  TEXT,
+    log_likelihood REAL,
+    seconds        REAL NOT NULL,
+    attempts       INTEGER NOT NULL DEFAULT 1,
+    code_version   TEXT NOT NULL,
+    created_at     TEXT NOT NULL
+)""",
+)
+_COLUMNS = (
+    "key, parameters, track_id, status, failure_kind, failure_reason, spectra, "
+    "spectra_shape, log_likelihood, seconds, attempts, code_version, created_at"
+)
+
+
+class StoreMismatchError(ValueError):
+    """The store on disk was made for another study (rig, data, names or version)."""
+
+
+@dataclass(frozen=True, eq=False)  # holds arrays: compare fields, not objects
+class Evaluation:
+    """One recorded simulator evaluation.
+
+    Attributes:
+        key: hex sha256 of the parameters' float64 bytes and the track id.
+        parameters: (q,) float64, physical units, calibration order.
+        track_id: the track realization (measured stretch) the rig ran on.
+        status: ``"ok"`` or ``"failed"``.
+        spectra: (C x F) float64 log-amplitude spectra, or None.
+        log_likelihood: the evaluation's log-likelihood contribution, or None.
+        failure_kind: ``"error"`` (deterministic, reused on resume) or
+            ``"crash"`` (worker lost, re-run on resume); None when ok.
+        failure_reason: human-readable reason, None when ok.
+        seconds: wall time of the evaluation (s).
+        attempts: how many times this key was recorded (crash retries).
+        code_version: package version that produced the row.
+        created_at: ISO-8601 UTC time of the last write.
+    """
+
+    key: str
+    parameters: np.ndarray
+    track_id: str
+    status: Literal["ok", "failed"]
+    spectra: np.ndarray | None
+    log_likelihood: float | None
+    failure_kind: FailureKind | None
+    failure_reason: str | None
+    seconds: float
+    attempts: int
+    code_version: str
+    created_at: str
+
+    @property
+    def ok(self) -> bool:
+        """True for a successful evaluation."""
+        return self.status == "ok"
+
+
+def _parameter_array(parameters: np.ndarray | list[float] | tuple[float, ...]) -> np.ndarray:
+    values = np.ascontiguousarray(parameters, dtype="<f8")
+    if values.ndim != 1 or values.size == 0:
+        raise ValueError(f"parameters: shape {values.shape} is not allowed; expected (q,), q >= 1")
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"parameters: {values.tolist()} contains NaN or inf; expected finite")
+    return values
+
+
+def evaluation_key(parameters: np.ndarray | list[float], track_id: str) -> str:
+    """Deterministic key of an evaluation: sha256 of the exact float64 bytes and the track id.
+
+    Args:
+        parameters: (q,) parameter vector; converted to little-endian float64.
+        track_id: track realization id.
+
+    Returns:
+        64 hex characters. Equal iff the float64 values are bit-identical and the
+        track ids equal (so 0.0 and -0.0 are different points).
+    """
+    values = _parameter_array(parameters)
+    digest = hashlib.sha256(values.tobytes())
+    digest.update(b"\x00" + track_id.encode("utf-8"))
+    return digest.hexdigest()
+
+
+def study_fingerprint(
+    rig: str, data: str, parameter_names: tuple[str, ...] | list[str], **extra: str
+) -> dict[str, str]:
+    """The fingerprint of a study, as :class:`EvaluationStore` expects it.
+
+    Args:
+        rig: the rig's fingerprint (``RigSpec.fingerprint()``).
+        data: the measured data's fingerprint (e.g. :func:`files_fingerprint`).
+        parameter_names: calibration parameter names, in calibration order.
+        **extra: anything else that changes simulator output (speed, duration…).
+
+    Returns:
+        Mapping of fingerprint keys to strings.
+    """
+    return {
+        "rig": rig,
+        "data": data,
+        "parameter_names": json.dumps(list(parameter_names)),
+        **{name: str(value) for name, value in extra.items()},
+    }
+
+
+def files_fingerprint(paths: list[Path] | tuple[Path, ...]) -> str:
+    """sha256 over the names and bytes of files, in sorted name order.
+
+    Args:
+        paths: files (for a folder of runs: ``sorted(folder.glob("*.h5"))``).
+
+    Returns:
+        64 hex characters.
+    """
+    digest = hashlib.sha256()
+    for path in sorted(Path(p) for p in paths):
+        digest.update(path.name.encode("utf-8") + b"\x00")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def _major_minor(version: str) -> str:
+    return ".".join(version.split(".")[:2])
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
+
+
+class EvaluationStore:
+    """One SQLite file per study holding every simulator evaluation.
+
+    Args:
+        path: the ``.sqlite`` file; created (with its folder) when absent.
+        fingerprint: what identifies the study (see :func:`study_fingerprint`);
+            the store adds ``store_schema_version`` and ``package_version``
+            (major.minor) itself.
+        code_version: version string written on every row.
+
+    Raises:
+        StoreMismatchError: the existing file was made for another study; the
+            message names the key that differs and both values.
+        ValueError: the file exists but is not an evaluation store.
+    """
+
+    def __init__(
+        self, path: str | Path, fingerprint: Mapping[str, str], code_version: str = __version__
+    ) -> None:
+        self.path = Path(path)
+        self.code_version = code_version
+        self.fingerprint: dict[str, str] = {
+            **{str(k): str(v) for k, v in fingerprint.items()},
+            "store_schema_version": STORE_SCHEMA_VERSION,
+            "package_version": _major_minor(__version__),
+        }
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        # isolation_level=None: autocommit; every write is an explicit BEGIN IMMEDIATE … COMMIT.
+        self._db = sqlite3.connect(self.path, isolation_level=None)
+        try:
+            self._open()
+        except BaseException:
+            self._db.close()
+            raise
+
+    def _open(self) -> None:
+        try:
+            mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+        except sqlite3.DatabaseError as error:
+            raise ValueError(f"{self.path}: not an evaluation store ({error})") from error
+        if str(mode).lower() != "wal":
+            raise ValueError(f"{self.path}: SQLite refused WAL mode (journal_mode={mode})")
+        # FULL: a committed evaluation survives power loss too, not only a killed process.
+        self._db.execute("PRAGMA synchronous=FULL")
+        self._db.execute("PRAGMA busy_timeout=30000")
+        with self._transaction():
+            tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master")}
+            if tables and "study" not in tables:
+                raise ValueError(
+                    f"{self.path}: not an evaluation store (tables {sorted(tables)}, no 'study')"
+                )
+            if not tables:
+                for statement in _SCHEMA:
+                    self._db.execute(statement)
+            stored = dict(self._db.execute("SELECT key, value FROM study").fetchall())
+            if not stored:
+                self._db.executemany(
+                    "INSERT INTO study (key, value) VALUES (?, ?)", sorted(self.fingerprint.items())
+                )
+                return
+        self._check_fingerprint(stored)
+
+    def _check_fingerprint(self, stored: dict[str, str]) -> None:
+        for name in sorted(set(stored) | set(self.fingerprint)):
+            old, new = stored.get(name, "(absent)"), self.fingerprint.get(name, "(absent)")
+            if old != new:
+                raise StoreMismatchError(
+                    f"{self.path}: store was made for another study: {name!r} is {old!r} in the "
+                    f"store but {new!r} now; use a new results folder, or the same "
+                    f"{name} as the stored study"
+                )
+
+    def _transaction(self) -> _Transaction:
+        return _Transaction(self._db)
+
+    # -- writing ---------------------------------------------------------------------------------
+
+    def record_ok(
+        self,
+        parameters: np.ndarray | list[float],
+        track_id: str,
+        spectra: np.ndarray | None,
+        seconds: float,
+        log_likelihood: float | None = None,
+    ) -> Evaluation:
+        """Record a successful evaluation (one committed transaction).
+
+        Args:
+            parameters: (q,) physical units, calibration order.
+            track_id: track realization id.
+            spectra: (C x F) float64 log-amplitude spectra, or None when only the
+                log-likelihood contribution is kept.
+            seconds: wall time of the simulation (s).
+            log_likelihood: log-likelihood contribution, optional.
+
+        Returns:
+            The stored evaluation. When the key is already recorded ok, the
+            stored row is kept unchanged and returned (first success wins).
+        """
+        if spectra is None and log_likelihood is None:
+            raise ValueError("record_ok: spectra and log_likelihood are both None; give one")
+        blob = shape = None
+        if spectra is not None:
+            array = np.ascontiguousarray(spectra, dtype="<f8")
+            if array.ndim != 2:
+                raise ValueError(f"spectra: shape {array.shape} is not allowed; expected (C x F)")
+            blob, shape = array.tobytes(), f"{array.shape[0]},{array.shape[1]}"
+        return self._record(
+            parameters, track_id, "ok", None, None, blob, shape, log_likelihood, seconds
+        )
+
+    def record_failure(
+        self,
+        parameters: np.ndarray | list[float],
+        track_id: str,
+        reason: str,
+        seconds: float,
+        kind: FailureKind = "error",
+    ) -> Evaluation:
+        """Record a failed evaluation (one committed transaction).
+
+        Args:
+            parameters: (q,) physical units, calibration order.
+            track_id: track realization id.
+            reason: why it failed (exception type and message).
+            seconds: wall time until the failure (s).
+            kind: ``"error"`` (deterministic; reused on resume) or ``"crash"``
+                (worker lost; re-run on resume).
+
+        Returns:
+            The stored evaluation (the existing one if the key is already ok).
+        """
+        if kind not in FAILURE_KINDS:
+            raise ValueError(f"kind: {kind!r} is not allowed; expected one of {FAILURE_KINDS}")
+        return self._record(parameters, track_id, "failed", kind, reason, None, None, None, seconds)
+
+    def _record(
+        self,
+        parameters: np.ndarray | list[float],
+        track_id: str,
+        status: str,
+        kind: str | None,
+        reason: str | None,
+        blob: bytes | None,
+        shape: str | None,
+        log_likelihood: float | None,
+        seconds: float,
+    ) -> Evaluation:
+        values = _parameter_array(parameters)
+        key = evaluation_key(values, track_id)
+        row = (
+            key,
+            values.tobytes(),
+            json.dumps(values.tolist()),
+            track_id,
+            status,
+            kind,
+            reason,
+            blob,
+            shape,
+            None if log_likelihood is None else float(log_likelihood),
+            float(seconds),
+            self.code_version,
+            _now(),
+        )
+        with self._transaction():
+            # An ok row is never overwritten; a failed row is replaced and its attempts counted.
+            self._db.execute(
+                "INSERT INTO evaluations (key, parameters, parameters_json, track_id, status, "
+                "failure_kind, failure_reason, spectra, spectra_shape, log_likelihood, seconds, "
+                "code_version, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) "
+                "ON CONFLICT(key) DO UPDATE SET status=excluded.status, "
+                "failure_kind=excluded.failure_kind, failure_reason=excluded.failure_reason, "
+                "spectra=excluded.spectra, spectra_shape=excluded.spectra_shape, "
+                "log_likelihood=excluded.log_likelihood, seconds=excluded.seconds, "
+                "attempts=evaluations.attempts + 1, code_version=excluded.code_version, "
+                "created_at=excluded.created_at WHERE evaluations.status != 'ok'",
+                row,
+            )
+        stored = self.lookup(values, track_id, include_crashes=True)
+        assert stored is not None
+        return stored
+
+    # -- reading ---------------------------------------------------------------------------------
+
+    def lookup(
+        self, parameters: np.ndarray | list[float], track_id: str, include_crashes: bool = False
+    ) -> Evaluation | None:
+        """The recorded evaluation of exactly these parameters on this track.
+
+        Args:
+            parameters: (q,) float64; matched bit-for-bit.
+            track_id: track realization id.
+            include_crashes: also return ``crash`` failures (which a resumed
+                study re-runs, so by default they read as not evaluated).
+
+        Returns:
+            The evaluation with spectra bit-for-bit as recorded, or None.
+        """
+        row = self._db.execute(
+            f"SELECT {_COLUMNS} FROM evaluations WHERE key = ?",
+            (evaluation_key(parameters, track_id),),
+        ).fetchone()
+        if row is None:
+            return None
+        evaluation = _from_row(row)
+        if evaluation.failure_kind == "crash" and not include_crashes:
+            return None
+        return evaluation
+
+    def evaluations(self, status: str | None = None) -> Iterator[Evaluation]:
+        """Every recorded evaluation in first-recorded order, optionally of one status."""
+        _check_status(status)
+        query = f"SELECT {_COLUMNS} FROM evaluations"
+        args: tuple[str, ...] = ()
+        if status is not None:
+            query, args = query + " WHERE status = ?", (status,)
+        for row in self._db.execute(query + " ORDER BY id", args).fetchall():
+            yield _from_row(row)
+
+    def count(self, status: str | None = None) -> int:
+        """Number of recorded evaluations, optionally of one status (``"ok"``/``"failed"``)."""
+        _check_status(status)
+        if status is None:
+            return int(self._db.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0])
+        query = "SELECT COUNT(*) FROM evaluations WHERE status = ?"
+        return int(self._db.execute(query, (status,)).fetchone()[0])
+
+    def close(self) -> None:
+        """Close the database (a checkpoint folds the WAL back into the file)."""
+        self._db.close()
+
+    def __enter__(self) -> EvaluationStore:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class _Transaction:
+    """``BEGIN IMMEDIATE`` … ``COMMIT``, or ``ROLLBACK`` on any exception."""
+
+    def __init__(self, db: sqlite3.Connection) -> None:
+        self._db = db
+
+    def __enter__(self) -> None:
+        self._db.execute("BEGIN IMMEDIATE")
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self._db.execute("ROLLBACK" if exc_type is not None else "COMMIT")
+
+
+def _check_status(status: str | None) -> None:
+    if status not in (None, "ok", "failed"):
+        raise ValueError(f"status: {status!r} is not allowed; expected None, 'ok' or 'failed'")
+
+
+def _from_row(row: tuple) -> Evaluation:
+    (key, params, track_id, status, kind, reason, blob, shape, loglik, seconds, attempts,
+     code_version, created_at) = row  # fmt: skip
+    spectra = None
+    if blob is not None:
+        rows, cols = (int(n) for n in shape.split(","))
+        spectra = np.frombuffer(blob, dtype="<f8").reshape(rows, cols).astype(np.float64)
+    return Evaluation(
+        key=key,
+        parameters=np.frombuffer(params, dtype="<f8").astype(np.float64),
+        track_id=track_id,
+        status=status,
+        spectra=spectra,
+        log_likelihood=loglik,
+        failure_kind=kind,
+        failure_reason=reason,
+        seconds=seconds,
+        attempts=attempts,
+        code_version=code_version,
+        created_at=created_at,
+    )

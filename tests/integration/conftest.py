@@ -1,0 +1,73 @@
+"""Fixtures for end-to-end runs of the real stack on a short, cheap version of the reference rig."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from susp_bo.data.measured import save_run
+from susp_bo.data.synthetic import synthesize_runs
+from susp_bo.rig.catalog import rig_path
+from susp_bo.rig.spec import load_rig_spec
+
+FAST_TRUTH = {"secondary_vertical_damping": 30.0e3, "yaw_damper_damping": 3.5e6}
+FAST_PARAMETERS = ("secondary_vertical_damping", "yaw_damper_damping")
+
+
+@pytest.fixture(scope="session")
+def fast_rig(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reference rig with 8 s records after 1 s warm-up (4 s Welch segments)."""
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    document["rig"]["name"] = "hst_trailer_fast"
+    document["simulation"].update(duration_s=8.0, warm_up_s=1.0)
+    document["spectrum"].update(segment_s=4.0, f_min_hz=0.5, n_frequencies=32)
+    path = tmp_path_factory.mktemp("rigs") / "hst_trailer_fast.toml"
+    path.write_text(tomli_w.dumps(document))
+    return path
+
+
+@pytest.fixture(scope="session")
+def fast_data(fast_rig: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two synthetic measured runs of the fast rig with a known worn state."""
+    folder = tmp_path_factory.mktemp("measured")
+    runs = synthesize_runs(load_rig_spec(fast_rig), FAST_TRUTH, nu=2, seed=7, noise_m_s2=0.005)
+    for index, run in enumerate(runs):
+        save_run(run, folder / f"run_{index:03d}.h5")
+    return folder
+
+
+def write_study(
+    folder: Path, rig: Path, data: Path, out: Path, executor: str = "workers = 2"
+) -> Path:
+    """A small study config (q = 2, 10 evaluations in batches of 2) in ``folder``."""
+    path = folder / "study.toml"
+    path.write_text(
+        f"""rig = "{rig}"
+data = "{data}"
+out = "{out}"
+parameters = {list(FAST_PARAMETERS)!r}
+
+[budget]
+max_evaluations = 10
+initial_design = 6
+batch_size = 2
+
+[executor]
+{executor}
+
+[mcmc]
+chains = 8
+draws = 300
+warmup = 200
+""".replace("'", '"')
+    )
+    return path
+
+
+@pytest.fixture(scope="session")
+def study_writer():
+    """:func:`write_study`, as a fixture (test modules cannot import each other)."""
+    return write_study

@@ -1,0 +1,126 @@
+"""A study killed with SIGKILL mid-batch resumes to exactly the uninterrupted result."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+VOLATILE = ("wall_time_s",)
+
+
+def _calibrate(config: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "susp_bo", "calibrate", str(config), *extra],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+
+
+def _stable(result_json: Path) -> dict:
+    payload = json.loads(result_json.read_text())
+    return {k: v for k, v in payload.items() if k not in VOLATILE}
+
+
+def _rows(store: Path) -> list[tuple[str, str, int, str]]:
+    db = sqlite3.connect(f"file:{store}?mode=ro", uri=True)
+    try:
+        return db.execute(
+            "SELECT key, status, attempts, created_at FROM evaluations ORDER BY id"
+        ).fetchall()
+    finally:
+        db.close()
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(fast_rig, fast_data, study_writer, tmp_path_factory) -> Path:
+    """Results folder of the study run once without interruption (2 worker processes)."""
+    folder = tmp_path_factory.mktemp("uninterrupted")
+    config = study_writer(folder, fast_rig, fast_data, folder / "out")
+    done = _calibrate(config)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return folder / "out"
+
+
+def test_uninterrupted_study_writes_the_results_folder(uninterrupted: Path) -> None:
+    payload = json.loads((uninterrupted / "result.json").read_text())
+    for field in (
+        "parameters",
+        "bounds",
+        "joint_map",
+        "marginal_map",
+        "interval95",
+        "n_simulations",
+        "mcmc",
+        "reference",
+    ):
+        assert field in payload, field
+    assert payload["parameters"] == ["secondary_vertical_damping", "yaw_damper_damping"]
+    assert payload["reference"] == [30.0e3, 3.5e6]
+    assert payload["n_simulations"] == 2 * payload["n_evaluations"] == 20
+    for (lo, hi), (b_lo, b_hi) in zip(payload["interval95"], payload["bounds"]):
+        assert b_lo <= lo < hi <= b_hi
+    for name in ("study.toml", "study.log", "evaluations.sqlite"):
+        assert (uninterrupted / name).is_file(), name
+    assert sorted(p.name for p in uninterrupted.glob("*.png"))
+
+
+def test_kill_9_mid_batch_then_resume_gives_the_same_result(
+    uninterrupted: Path, fast_rig, fast_data, study_writer, tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    config = study_writer(tmp_path, fast_rig, fast_data, out)
+    store = out / "evaluations.sqlite"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "susp_bo", "calibrate", str(config)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 300
+    try:
+        # the first batch is the 6-point design on 2 tracks (12 simulations): kill inside it
+        while time.monotonic() < deadline:
+            if store.exists() and len(_rows(store)) >= 5:
+                break
+            assert process.poll() is None, "the study ended before it could be killed"
+            time.sleep(0.05)
+        os.kill(process.pid, signal.SIGKILL)
+        process.wait(timeout=30)
+    finally:
+        try:
+            os.killpg(process.pid, signal.SIGKILL)  # its orphaned pool workers too
+        except ProcessLookupError:
+            pass
+    assert process.returncode == -signal.SIGKILL
+    before = {key: created for key, _, _, created in _rows(store)}
+    assert 5 <= len(before) < 20
+    assert not (out / "result.json").exists()
+
+    refused = _calibrate(config)
+    assert refused.returncode == 2
+    assert "--resume" in refused.stderr
+
+    resumed = _calibrate(config, "--resume")
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert _stable(out / "result.json") == _stable(uninterrupted / "result.json")
+
+    after = _rows(store)
+    reference_rows = _rows(uninterrupted / "evaluations.sqlite")
+    assert len(after) == len(reference_rows) == 20
+    assert {key for key, *_ in after} == {key for key, *_ in reference_rows}
+    assert all(attempts == 1 for _, _, attempts, _ in after)
+    # finished evaluations were reused, not re-run: their rows are untouched
+    created_after = {key: created for key, _, _, created in after}
+    assert all(created_after[key] == created for key, created in before.items())

@@ -1,0 +1,79 @@
+"""Wheel–rail contact: Klingel's kinematic oscillation, creep forces vs their matrices."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from susp_bo.rig.assembly import build_assembly, free_wheelset_assembly
+from susp_bo.rig.contact import klingel_wavelength
+from susp_bo.rig.dynamics import ForceModel
+from susp_bo.rig.linear import state_space
+from susp_bo.rig.simulator import integrate
+from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.track import AxleExcitation
+from susp_bo.rig.world import VehicleWorld
+
+
+def test_single_wheelset_oscillates_at_klingels_wavelength_in_pybullet(
+        reference_spec: RigSpec) -> None:
+    p = reference_spec.parameters
+    expected = klingel_wavelength(p["wheelset_rolling_radius"], p["contact_half_contact_spacing"],
+                                  p["contact_equivalent_conicity"])
+    assembly = free_wheelset_assembly(reference_spec)
+    speed, dt, steps = 10.0, 5e-4, 6000
+    zeros = np.zeros((1, steps + 1))
+    excitation = AxleExcitation(np.arange(steps + 1) * dt, *([zeros] * 7))
+    world = VehicleWorld(dt)
+    try:
+        world.build(assembly)
+        world.set_state([0.003, 0.0], [0.0, 0.0])
+        q, _ = integrate(world, ForceModel(assembly), excitation, np.full(steps + 1, speed), 1,
+                         0.2, assembly.dof_names)
+    finally:
+        world.close()
+    y = q[:, 0]
+    t = np.arange(steps + 1) * dt
+    i = np.where(np.sign(y[:-1]) * np.sign(y[1:]) < 0)[0]
+    crossings = t[i] - y[i] * dt / (y[i + 1] - y[i])
+    wavelength = speed * 2 * np.mean(np.diff(crossings))
+    assert wavelength == pytest.approx(expected, rel=0.005)
+    # the linearised model of the same assembly agrees
+    values = np.linalg.eigvals(state_space(assembly, speed).a)
+    oscillatory = values[values.imag > 0]
+    assert speed * 2 * np.pi / oscillatory.imag[0] == pytest.approx(expected, rel=0.005)
+
+
+def test_creep_forces_equal_their_linear_matrices(reference_spec: RigSpec, rng) -> None:
+    assembly = build_assembly(reference_spec)
+    contact = assembly.contact
+    n, n_in = assembly.n_dofs, assembly.n_inputs
+    q, qd = rng.normal(size=n) * 1e-3, rng.normal(size=n) * 1e-2
+    x, xd = rng.normal(size=n_in) * 1e-3, rng.normal(size=n_in) * 1e-2
+    speed = 70.0
+    lateral, moment = contact.creep_forces(q, qd, x, xd, speed)
+    m = contact.matrices(n, n_in, speed)
+    generalised = (-m["stiffness"] @ q - m["damping"] @ qd + m["input_stiffness"] @ x
+                   + m["input_damping"] @ xd)
+    np.testing.assert_allclose(generalised[contact.lateral_dof], lateral, rtol=1e-12)
+    np.testing.assert_allclose(generalised[contact.yaw_dof], moment, rtol=1e-12)
+
+
+def test_flange_dead_band_only_acts_beyond_the_clearance(reference_spec: RigSpec) -> None:
+    assembly = build_assembly(reference_spec)
+    model = ForceModel(assembly)
+    dof = assembly.contact.lateral_dof[0]
+    gap = reference_spec.parameters["contact_flange_gap"]
+    stiffness = reference_spec.parameters["contact_flange_stiffness"]
+    n, n_in = assembly.n_dofs, assembly.n_inputs
+
+    def flange(offset: float) -> float:
+        q = np.zeros(n)
+        q[dof] = offset
+        model.forces[:] = 0
+        model(q, np.zeros(n), np.zeros(n_in), np.zeros(n_in), 80.0, np.zeros(model.n_strokes))
+        names = assembly.dead_bands.group.names
+        return float(model.forces[model.dead][names.index("flange_wheelset_1")])
+
+    assert abs(flange(0.5 * gap)) < 1e-3 * stiffness * gap
+    assert flange(gap + 0.005) == pytest.approx(stiffness * 0.005, rel=0.01)

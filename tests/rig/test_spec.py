@@ -1,0 +1,146 @@
+"""Rig spec parsing and validation: rigs are data, bad input fails with a clear message."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+
+import numpy as np
+import pytest
+import tomli_w
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from susp_bo.rig.catalog import available_rigs, rig_path
+from susp_bo.rig.spec import RigSpec, load_rig_spec, parse_rig
+
+PAPER_Q = 7
+
+
+def _document(name: str = "hst_trailer") -> dict:
+    with rig_path(name).open("rb") as handle:
+        return tomllib.load(handle)
+
+
+def test_both_public_rigs_load_with_distinct_data() -> None:
+    assert {"hst_trailer", "manchester_benchmark"} <= set(available_rigs())
+    hst = load_rig_spec("hst_trailer")
+    manchester = load_rig_spec("manchester_benchmark")
+    assert hst.topology == manchester.topology == "two_bogie_car"
+    assert hst.parameters["carbody_mass"] == 43862.0
+    assert manchester.parameters["carbody_mass"] == 32000.0
+    assert "Iwnicki" in manchester.reference
+    assert hst.fingerprint() != manchester.fingerprint()
+
+
+def test_reference_rig_has_the_papers_seven_calibration_parameters(reference_spec: RigSpec) -> None:
+    assert len(reference_spec.calibration) == PAPER_Q
+    bounds = reference_spec.calibration_bounds
+    assert bounds.shape == (2, PAPER_Q)
+    assert np.all(bounds[0] < reference_spec.calibration_reference)
+    assert np.all(reference_spec.calibration_reference < bounds[1])
+    values = reference_spec.parameter_values()
+    for entry in reference_spec.calibration:
+        assert values[entry.name] == entry.reference
+        assert entry.unit and entry.description
+
+
+def test_channels_cover_carbody_and_bogies_vertical_and_lateral(reference_spec: RigSpec) -> None:
+    channels = set(reference_spec.channels)
+    for place in ("carbody_front", "carbody_mid", "carbody_rear", "bogie_front", "bogie_rear"):
+        assert {f"{place}_vertical", f"{place}_lateral"} <= channels
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"primary_vertical_stifness": 1e6}, "unknown parameter 'primary_vertical_stifness'"),
+        ({"carbody_mass": -1.0}, "carbody_mass: got -1.0; must be > 0"),
+        ({"secondary_lateral_stiffness": -5.0}, "must be >= 0"),
+        ({"primary_vertical_damping": math.nan}, "must be finite"),
+        ({"yaw_damper_damping": math.inf}, "must be finite"),
+        ({"primary_vertical_stiffness": 5e6}, "outside the admissible interval"),
+        ({"anti_roll_bar_stiffness": 0.5e6}, "outside the admissible interval"),
+    ],
+)
+def test_bad_parameter_values_are_rejected(reference_spec: RigSpec, change: dict,
+                                           message: str) -> None:
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        reference_spec.with_parameters(change)
+
+
+def test_parameters_from_vector_checks_length(reference_spec: RigSpec) -> None:
+    w = reference_spec.calibration_reference
+    assert reference_spec.parameters_from_vector(w)["yaw_damper_damping"] == 4.9e6
+    with pytest.raises(ValueError, match="expected q = 7"):
+        reference_spec.parameters_from_vector(w[:3])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=PAPER_Q, max_size=PAPER_Q),
+       st.integers(0, PAPER_Q - 1), st.floats(1e-6, 1.0))
+def test_admissible_set_is_exactly_the_box(unit: list[float], index: int, excess: float) -> None:
+    spec = load_rig_spec("hst_trailer")
+    low, high = spec.calibration_bounds
+    w = low + np.array(unit) * (high - low)
+    changed = spec.with_parameters(spec.parameters_from_vector(w))
+    assert np.allclose([changed.parameters[n] for n in spec.calibration_names], w)
+    outside = w.copy()
+    outside[index] = high[index] + excess * (high[index] - low[index])
+    with pytest.raises(ValueError, match="outside the admissible interval"):
+        spec.with_parameters(spec.parameters_from_vector(outside))
+
+
+def test_fingerprint_is_stable_and_content_sensitive(reference_spec: RigSpec) -> None:
+    again = load_rig_spec("hst_trailer")
+    assert again.fingerprint() == reference_spec.fingerprint()
+    changed = reference_spec.with_parameters({"secondary_vertical_damping": 41e3})
+    assert changed.fingerprint() != reference_spec.fingerprint()
+
+
+def test_round_trip_through_a_written_toml_file(tmp_path) -> None:
+    document = _document()
+    document["rig"]["name"] = "copy"
+    path = tmp_path / "copy.toml"
+    path.write_bytes(tomli_w.dumps(document).encode())
+    spec = load_rig_spec(path)
+    assert spec.name == "copy"
+    assert spec.parameters == load_rig_spec("hst_trailer").parameters
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d.update(suspension={"x": 1.0}), "unknown sections"),
+        (lambda d: d["primary"].pop("vertical_stiffness"), "missing parameters"),
+        (lambda d: d["sensors"][0].update(direction="longitudinal"), "direction"),
+        (lambda d: d["sensors"][0].update(body="wheelset_1"), None),
+        (lambda d: d["simulation"].update(sample_rate_hz=300.0), "integer multiple"),
+        (lambda d: d["simulation"].update(speed_m_s=0.0), "speed_m_s"),
+        (lambda d: d["spectrum"].update(f_min_hz=0.1), "f_min_hz"),
+        (lambda d: d["calibration"]["parameters"][0].update(reference=1.0e6),
+         "differs from the rig value"),
+        (lambda d: d["calibration"]["parameters"][0].update(lower=2e6), "lower"),
+        (lambda d: d["calibration"]["parameters"][1].update(name="nonexistent"),
+         "not a named parameter"),
+        (lambda d: d.update(effects={"carbody_bending": {}}), None),
+    ],
+)
+def test_invalid_rig_files_fail_with_a_named_field(edit, message) -> None:
+    document = _document()
+    edit(document)
+    if message is None:  # detected when the vehicle is assembled (before any simulation)
+        from susp_bo.rig.assembly import build_assembly
+
+        with pytest.raises(ValueError, match="sensor|effect"):
+            build_assembly(parse_rig(document))
+        return
+    with pytest.raises(ValueError, match=message):
+        parse_rig(document)
+
+
+def test_effects_table_is_parsed_for_the_registry() -> None:
+    document = _document()
+    document["effects"] = {"carbody_bending": {"enabled": False, "frequency_hz": 9.0}}
+    spec = parse_rig(document)
+    assert spec.effects == {"carbody_bending": {"enabled": False, "frequency_hz": 9.0}}
