@@ -15,10 +15,11 @@ import time
 import numpy as np
 
 from susp_bo.calibration.evaluation import simulate_spectra
-from susp_bo.data.synthetic import TRACK_MARGIN_M, track_seed
+from susp_bo.data.synthetic import track_seed
 from susp_bo.execution import make_executor, run_tasks
+from susp_bo.rig.simulator import synthetic_track
 from susp_bo.rig.spec import load_rig_spec
-from susp_bo.rig.track import SpeedProfile, TrackGeometry
+from susp_bo.rig.track import SpeedProfile
 
 
 def batch_seconds(workers: int, tasks: list[tuple], warm: list[tuple]) -> tuple[float, list]:
@@ -43,11 +44,7 @@ def main() -> None:
     tasks = []
     for index in range(args.runs):
         w = bounds[0] + rng.random(bounds.shape[1]) * (bounds[1] - bounds[0])
-        geometry = TrackGeometry.synthetic(
-            quality=settings.track_quality,
-            length_m=speed.total_distance_m + TRACK_MARGIN_M,
-            seed=track_seed(0, index),
-        )
+        geometry = synthetic_track(spec, seed=track_seed(0, index))
         tasks.append((spec, spec.parameters_from_vector(w), geometry, speed))
     warm = tasks[:2]
     one, outcomes_one = batch_seconds(1, tasks, warm)

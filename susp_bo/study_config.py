@@ -31,9 +31,9 @@ Example (also in notes/study_example.toml)::
     # scheduler = "tcp://scheduler.example:8786"   # a Dask cluster instead of workers
 
     [mcmc]
-    chains = 4
-    draws = 2000
-    warmup = 1000
+    chains = 64             # vectorised in one kernel step
+    draws = 1500            # kept steps per chain
+    warmup = 1000           # adaptive warm-up steps per chain
 
     [output_error]
     sigma = "estimate"      # or one σ for all channels, or a table {channel = σ}
@@ -44,18 +44,13 @@ from __future__ import annotations
 
 import difflib
 import math
-import sys
+import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
 
 import tomli_w
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 from susp_bo.rig.catalog import available_rigs, rig_path
 
@@ -147,11 +142,15 @@ class ExecutorConfig:
 
 @dataclass(frozen=True)
 class MCMCConfig:
-    """Metropolis–Hastings sampling on the surrogate: chains, draws and warm-up per chain."""
+    """Metropolis–Hastings sampling on the surrogate: chains, draws and warm-up per chain.
+
+    The chains are vectorised inside one kernel step, so many chains cost little
+    more than one; the defaults are those of :class:`CalibrationSettings`.
+    """
 
     section: ClassVar[str] = "mcmc"
-    chains: int = 4
-    draws: int = 2000
+    chains: int = 64
+    draws: int = 1500
     warmup: int = 1000
 
     def __post_init__(self) -> None:

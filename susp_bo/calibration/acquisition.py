@@ -64,8 +64,12 @@ def propose_ei_batch(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             cand, value = optimize_acqf(
-                acq, bounds=bounds, q=batch_size, num_restarts=num_restarts,
-                raw_samples=raw_samples, options={"maxiter": 200},
+                acq,
+                bounds=bounds,
+                q=batch_size,
+                num_restarts=num_restarts,
+                raw_samples=raw_samples,
+                options={"maxiter": 200},
             )
     for w in caught:
         logger.debug("EI optimisation: %s: %s", w.category.__name__, w.message)

@@ -128,9 +128,7 @@ def pair_log_densities(
     zs = _whiten(simulated, error, chol)
     zs = zs.reshape(*zs.shape[:-2], -1)  # (b x) μ x CF
     sq = np.sum((zm[:, None, :] - zs[..., None, :, :]) ** 2, axis=-1)  # (b x) ν x μ
-    log_det = 2.0 * n_freq * np.sum(np.log(error.sigma)) + c * 2.0 * np.sum(
-        np.log(np.diag(chol))
-    )
+    log_det = 2.0 * n_freq * np.sum(np.log(error.sigma)) + c * 2.0 * np.sum(np.log(np.diag(chol)))
     return -0.5 * sq - 0.5 * log_det - 0.5 * c * n_freq * math.log(2.0 * math.pi)
 
 

@@ -29,7 +29,8 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -85,6 +86,9 @@ class CalibrationSettings:
         candidate_count: posterior candidates scored per refinement batch (and as many widened).
         acquisition_restarts: restarts of the qLogEI optimisation.
         acquisition_raw_samples: raw samples for the qLogEI restarts.
+        num_threads: torch intra-op threads for the surrogate, acquisition and MCMC work
+            (restored afterwards, never around ``evaluate``); None leaves torch's setting.
+            The default 1 is fastest for these small matrices, by far on a shared machine.
     """
 
     seed: int = 0
@@ -105,6 +109,7 @@ class CalibrationSettings:
     candidate_count: int = 512
     acquisition_restarts: int = 6
     acquisition_raw_samples: int = 256
+    num_threads: int | None = 1
 
     def __post_init__(self) -> None:
         positive = {
@@ -122,6 +127,10 @@ class CalibrationSettings:
             v = getattr(self, name)
             if v is not None and (int(v) != v or v < 2):
                 raise ValueError(f"{name}: {v} must be None or an integer >= 2")
+        if self.num_threads is not None and (
+            int(self.num_threads) != self.num_threads or self.num_threads < 1
+        ):
+            raise ValueError(f"num_threads: {self.num_threads} must be None or an integer >= 1")
         if self.mcmc_warmup < 0:
             raise ValueError(f"mcmc_warmup: {self.mcmc_warmup} must be >= 0")
         if not self.ei_tolerance > 0.0:
@@ -208,6 +217,20 @@ class CalibrationResult:
         return out
 
 
+@contextmanager
+def torch_threads(n: int | None) -> Iterator[None]:
+    """Temporarily sets torch's intra-op thread count (None: unchanged)."""
+    if n is None:
+        yield
+        return
+    previous = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
 def _seed(master: int, iteration: int, purpose: int) -> int:
     return int(np.random.SeedSequence([master, iteration, purpose]).generate_state(1)[0])
 
@@ -236,7 +259,11 @@ def _refinement_candidates(
     chains = 32
     steps = max(1, math.ceil(2 * m / chains))
     draws, _ = sample_surrogate_posterior(
-        surrogate, n_chains=chains, warmup_steps=300, num_samples=steps, seed=seed,
+        surrogate,
+        n_chains=chains,
+        warmup_steps=300,
+        num_samples=steps,
+        seed=seed,
         estimator=settings.estimator,
     )
     flat = draws.transpose(0, 1).reshape(-1, surrogate.dim)
@@ -246,6 +273,49 @@ def _refinement_candidates(
     sd = flat.std(0).clamp_min(1e-3)
     wide = (wide + sd * torch.randn(wide.shape, generator=gen, dtype=torch.float64)).clamp(0, 1)
     return torch.cat([post, wide]), post.shape[0]
+
+
+@dataclass(frozen=True)
+class _Step:
+    phase: Phase
+    proposal: torch.Tensor | None
+    criterion: float
+    stop_reason: str
+
+
+def _propose(
+    x: np.ndarray,
+    y: np.ndarray,
+    bounds: np.ndarray,
+    phase: Phase,
+    size: int,
+    iteration: int,
+    ego_exhausted: bool,
+    settings: CalibrationSettings,
+) -> _Step:
+    """Refits the surrogate and proposes the next batch (None when a stopping rule fires)."""
+    seed = settings.seed
+    surrogate = fit_surrogate(
+        to_unit(x, bounds), _impute(y), settings.surrogate, _seed(seed, iteration, 1)
+    )
+    if phase == "ego":
+        u, criterion = propose_ei_batch(
+            surrogate,
+            size,
+            _seed(seed, iteration, 2),
+            settings.acquisition_restarts,
+            settings.acquisition_raw_samples,
+        )
+        converged = criterion < settings.ei_tolerance
+        if not (converged or ego_exhausted):
+            return _Step("ego", u, criterion, "")
+        if not settings.refine:
+            return _Step("ego", None, criterion, "ego_converged" if converged else "budget")
+    candidates, n_post = _refinement_candidates(surrogate, settings, _seed(seed, iteration, 3))
+    u, criterion = select_uncertainty_batch(surrogate, candidates, size, n_post)
+    if criterion < settings.refine_tolerance:
+        return _Step("refine", None, criterion, "converged")
+    return _Step("refine", u, criterion, "")
 
 
 def calibrate(
@@ -288,37 +358,25 @@ def calibrate(
     iteration = 0
     while x.shape[0] < budget:
         iteration += 1
-        y_fit = _impute(y)
-        surrogate = fit_surrogate(to_unit(x, b), y_fit, settings.surrogate, _seed(settings.seed, iteration, 1))
         size = min(settings.batch_size, budget - x.shape[0])
-        proposal = None
-        if phase == "ego":
-            u, criterion = propose_ei_batch(
-                surrogate, size, _seed(settings.seed, iteration, 2),
-                settings.acquisition_restarts, settings.acquisition_raw_samples,
-            )
-            if criterion < settings.ei_tolerance or x.shape[0] >= ego_cap:
-                phase = "refine"
-                if not settings.refine:
-                    stop_reason = "ego_converged" if criterion < settings.ei_tolerance else "budget"
-                    break
-            else:
-                proposal = u
-        if phase == "refine":
-            candidates, n_post = _refinement_candidates(
-                surrogate, settings, _seed(settings.seed, iteration, 3)
-            )
-            proposal, criterion = select_uncertainty_batch(surrogate, candidates, size, n_post)
-            if criterion < settings.refine_tolerance:
-                stop_reason = "converged"
-                break
-        w_new = from_unit(proposal.numpy(), b)
+        with torch_threads(settings.num_threads):
+            step = _propose(x, y, b, phase, size, iteration, x.shape[0] >= ego_cap, settings)
+        phase = step.phase
+        if step.proposal is None:
+            stop_reason = step.stop_reason
+            break
+        w_new = from_unit(step.proposal.numpy(), b)
         y_new = _evaluate(evaluate, w_new)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(size)
         best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
         report = IterationReport(
-            iteration, phase, x.shape[0], float(y[best]), x[best].copy(), float(criterion),
+            iteration,
+            phase,
+            x.shape[0],
+            float(y[best]),
+            x[best].copy(),
+            step.criterion,
             int(np.sum(~np.isfinite(y))),
         )
         history.append(report)
@@ -326,18 +384,32 @@ def calibrate(
         if on_iteration is not None:
             on_iteration(report)
     bar.close()
-    y_fit = _impute(y)
-    surrogate = fit_surrogate(to_unit(x, b), y_fit, settings.surrogate, _seed(settings.seed, _FINAL, 1))
-    draws_u, diag = sample_surrogate_posterior(
-        surrogate, n_chains=settings.mcmc_chains, warmup_steps=settings.mcmc_warmup,
-        num_samples=settings.mcmc_samples, seed=_seed(settings.seed, _FINAL, 4),
-        estimator=settings.estimator, backend=settings.mcmc_backend,
-    )
-    log_l = surrogate_log_likelihood(surrogate, settings.estimator)
-    summary = summarize(draws_u.numpy(), b, list(names), log_l)
+    with torch_threads(settings.num_threads):
+        surrogate = fit_surrogate(
+            to_unit(x, b), _impute(y), settings.surrogate, _seed(settings.seed, _FINAL, 1)
+        )
+        draws_u, diag = sample_surrogate_posterior(
+            surrogate,
+            n_chains=settings.mcmc_chains,
+            warmup_steps=settings.mcmc_warmup,
+            num_samples=settings.mcmc_samples,
+            seed=_seed(settings.seed, _FINAL, 4),
+            estimator=settings.estimator,
+            backend=settings.mcmc_backend,
+        )
+        log_l = surrogate_log_likelihood(surrogate, settings.estimator)
+        summary = summarize(draws_u.numpy(), b, list(names), log_l)
     draws = from_unit(draws_u.numpy().reshape(-1, q), b).reshape(draws_u.shape)
     return CalibrationResult(
-        names=tuple(names), bounds=b, X=x, y=y, surrogate=surrogate, draws=draws,
-        summary=summary, n_evaluations=int(x.shape[0]), stop_reason=stop_reason,
-        history=tuple(history), mcmc=diag,
+        names=tuple(names),
+        bounds=b,
+        X=x,
+        y=y,
+        surrogate=surrogate,
+        draws=draws,
+        summary=summary,
+        n_evaluations=int(x.shape[0]),
+        stop_reason=stop_reason,
+        history=tuple(history),
+        mcmc=diag,
     )

@@ -83,15 +83,17 @@ class RandomWalkMetropolis(MCMCKernel):
         self.site = site
         self.seed = int(seed)
         self.adapt = adapt
-        self.target_accept = target_accept if target_accept is not None else (
-            default_target_acceptance(q)
+        self.target_accept = (
+            target_accept if target_accept is not None else (default_target_acceptance(q))
         )
         if not 0.0 < self.target_accept < 1.0:
             raise ValueError(f"target_accept: {self.target_accept} must be in (0, 1)")
         cov = proposal_cov if proposal_cov is not None else 0.01 * torch.eye(q, dtype=torch.float64)
         self._initial_cov = torch.as_tensor(cov, dtype=torch.float64)
         if self._initial_cov.shape != (q, q):
-            raise ValueError(f"proposal_cov: shape {tuple(self._initial_cov.shape)}, expected {q}x{q}")
+            raise ValueError(
+                f"proposal_cov: shape {tuple(self._initial_cov.shape)}, expected {q}x{q}"
+            )
         self._init = init
         self.model = None
         self.setup(0)
@@ -106,7 +108,9 @@ class RandomWalkMetropolis(MCMCKernel):
     def initial_params(self, params: dict[str, torch.Tensor]) -> None:
         init = torch.as_tensor(params[self.site], dtype=torch.float64)
         if init.shape != self._init.shape:
-            raise ValueError(f"initial_params: shape {tuple(init.shape)} != {tuple(self._init.shape)}")
+            raise ValueError(
+                f"initial_params: shape {tuple(init.shape)} != {tuple(self._init.shape)}"
+            )
         self._init = init
 
     def setup(self, warmup_steps: int, *args: object, **kwargs: object) -> None:

@@ -118,7 +118,9 @@ class PosteriorSummary:
                 raise ValueError(f"{name}: shape {np.shape(getattr(self, name))}, expected ({q},)")
         for name in ("interval95", "equal_tailed95"):
             if np.shape(getattr(self, name)) != (q, 2):
-                raise ValueError(f"{name}: shape {np.shape(getattr(self, name))}, expected ({q}, 2)")
+                raise ValueError(
+                    f"{name}: shape {np.shape(getattr(self, name))}, expected ({q}, 2)"
+                )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of plain lists (physical units)."""

@@ -118,7 +118,11 @@ class Surrogate:
     """
 
     def __init__(
-        self, model: SingleTaskGP, warping: OutputWarping, train_x: torch.Tensor, train_y: np.ndarray
+        self,
+        model: SingleTaskGP,
+        warping: OutputWarping,
+        train_x: torch.Tensor,
+        train_y: np.ndarray,
     ) -> None:
         self.model = model
         self.warping = warping

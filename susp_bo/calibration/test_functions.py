@@ -109,7 +109,9 @@ class PlanarBlock:
         """Exact draws (n x 2) of the untruncated density."""
         return self.sampler_fn(n, rng)
 
-    def marginal_pdf(self, k: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    def marginal_pdf(
+        self, k: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> np.ndarray:
         """Marginal density of component k (0 or 1) on points x, by quadrature over the box."""
         g0 = np.linspace(lower[0], upper[0], _GRID)
         g1 = np.linspace(lower[1], upper[1], _GRID)
@@ -199,7 +201,9 @@ class AnalyticTarget:
         for block, sl in zip(self.blocks, self._slices()):
             if sl.start <= k < sl.stop:
                 return block.marginal_pdf(
-                    k - sl.start, np.asarray(x, dtype=np.float64), self.bounds[0, sl],
+                    k - sl.start,
+                    np.asarray(x, dtype=np.float64),
+                    self.bounds[0, sl],
                     self.bounds[1, sl],
                 )
         raise ValueError(f"k: {k} outside 0..{self.dim - 1}")

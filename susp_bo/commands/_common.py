@@ -5,11 +5,10 @@ from __future__ import annotations
 import json
 import logging
 import math
+import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
-
-import tomllib
 
 from susp_bo.cli import UsageError
 

@@ -10,10 +10,9 @@ import numpy as np
 
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import output_folder, read_parameter_file, write_json
-from susp_bo.data.synthetic import TRACK_MARGIN_M
-from susp_bo.rig.simulator import Rig
+from susp_bo.rig.simulator import Rig, synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
-from susp_bo.rig.track import SpeedProfile, TrackGeometry
+from susp_bo.rig.track import SpeedProfile
 
 
 def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
@@ -48,11 +47,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     out = output_folder(args.out)
     settings = spec.simulation
     speed = SpeedProfile.constant(settings.speed_m_s, settings.warm_up_s + settings.duration_s)
-    geometry = TrackGeometry.synthetic(
-        quality=settings.track_quality,
-        length_m=speed.total_distance_m + TRACK_MARGIN_M,
-        seed=args.seed,
-    )
+    geometry = synthetic_track(spec, seed=args.seed)
     print(
         f"susp-bo simulate: {spec.name}, {settings.speed_m_s:.1f} m/s, "
         f"{settings.duration_s:.1f} s after {settings.warm_up_s:.1f} s warm-up, seed {args.seed}",

@@ -6,6 +6,7 @@ file and the item; nothing else escapes :func:`read_run_file`.
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,41 @@ from susp_bo.data.measured import (
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
 _NUMERIC_KINDS = {"f", "i", "u"}
+USERBLOCK_SIZE = 512
+USERBLOCK_MAGIC = b"susp_bo.measured_run userblock\n"
+
+
+def _file_digest(path: Path) -> str:
+    """SHA-256 (hex) of the file's bytes after the user block."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        handle.seek(USERBLOCK_SIZE)
+        for chunk in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _seal(path: Path) -> None:
+    """Write the file checksum into the (already reserved) HDF5 user block."""
+    text = USERBLOCK_MAGIC + f"sha256={_file_digest(path)}\n".encode()
+    with open(path, "r+b") as handle:
+        handle.write(text.ljust(USERBLOCK_SIZE, b"\0"))
+
+
+def _check_seal(path: Path) -> None:
+    """Verify the user-block checksum, if the file has one, before HDF5 parses anything."""
+    with open(path, "rb") as handle:
+        head = handle.read(USERBLOCK_SIZE)
+    if not head.startswith(USERBLOCK_MAGIC):
+        return
+    line = head[len(USERBLOCK_MAGIC) :].split(b"\n", 1)[0]
+    expected = line.removeprefix(b"sha256=").decode("ascii", errors="replace")
+    if len(head) < USERBLOCK_SIZE or _file_digest(path) != expected:
+        raise MeasuredDataError(
+            f"{path}: file checksum mismatch: the file is corrupted or truncated "
+            f"({path.stat().st_size} bytes); if it was edited on purpose, re-save it with "
+            "save_run or zero its first 512 bytes"
+        )
 
 
 def _write_array(group: h5py.Group, name: str, values: np.ndarray, unit: str | None) -> None:
@@ -36,7 +72,7 @@ def _write_array(group: h5py.Group, name: str, values: np.ndarray, unit: str | N
 def write_run_file(run: MeasuredRun, path: Path) -> None:
     """Write ``run`` to ``path`` (overwritten) in format version 1."""
     strings = h5py.string_dtype(encoding="utf-8")
-    with h5py.File(path, "w", libver=("v110", "latest")) as file:
+    with h5py.File(path, "w", libver=("v110", "latest"), userblock_size=USERBLOCK_SIZE) as file:
         file.attrs["format"] = FORMAT_NAME
         file.attrs["format_version"] = np.int64(FORMAT_VERSION)
         file.attrs["metadata_json"] = json.dumps(run.metadata, sort_keys=True)
@@ -56,6 +92,7 @@ def write_run_file(run: MeasuredRun, path: Path) -> None:
             "channels", data=np.array(run.channels, dtype=object), dtype=strings
         )
         accelerations.create_dataset("units", data=np.array(run.units, dtype=object), dtype=strings)
+    _seal(path)
 
 
 class _Reader:
@@ -200,6 +237,7 @@ def read_run_file(path: Path) -> MeasuredRun:
     if not path.is_file():
         raise MeasuredDataError(f"{path}: no such file")
     try:
+        _check_seal(path)
         with h5py.File(path, "r") as file:
             return _read(file, str(path))
     except MeasuredDataError:

@@ -36,8 +36,16 @@ on the clock of the speed record; the car's rearmost axle is at ``s = 0`` at
 effects of synthetic runs, seed, noise, line and date of real ones).
 ``content_sha256`` is the SHA-256 of the run's canonical content (written by
 :func:`save_run`; verified on load when present, so files written by other tools
-may omit it). Datasets are written chunked with Fletcher-32 checksums and
-HDF5 ≥ 1.10 object headers, so corrupted bytes are detected instead of read.
+may omit it).
+
+Integrity: :func:`save_run` reserves a 512-byte HDF5 user block (ignored by
+every HDF5 reader: h5py, MATLAB, HDFView) holding the line
+``susp_bo.measured_run userblock`` and ``sha256=<hex>`` of all bytes after the
+block. :func:`load_run` verifies it before HDF5 parses the file, so a
+truncated or bit-flipped file is refused with a clear message (a corrupted
+HDF5 structure can otherwise make the HDF5 library loop or misread). Files
+without the block (written by other tools) are parsed directly; datasets are
+also written chunked with Fletcher-32 checksums and HDF5 ≥ 1.10 object headers.
 
 Loading never returns a half-valid run: any problem (not HDF5, truncated,
 missing or extra-shaped dataset, wrong dtype, wrong units attribute, NaN or

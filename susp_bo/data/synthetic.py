@@ -17,12 +17,9 @@ from collections.abc import Mapping
 import numpy as np
 
 from susp_bo.data.measured import MeasuredRun
-from susp_bo.rig.simulator import Rig
+from susp_bo.rig.simulator import Rig, synthetic_track
 from susp_bo.rig.spec import RigSpec
-from susp_bo.rig.track import SpeedProfile, TrackGeometry
-
-TRACK_MARGIN_M = 80.0
-"""Track beyond the travelled distance (m): covers the car's length and the axle look-ahead."""
+from susp_bo.rig.track import SpeedProfile
 
 
 def track_seed(seed: int, run_index: int) -> int:
@@ -79,11 +76,7 @@ def synthesize_runs(
     runs: list[MeasuredRun] = []
     with Rig(true_spec) as rig:
         for index in range(nu):
-            geometry = TrackGeometry.synthetic(
-                quality=settings.track_quality,
-                length_m=speed.total_distance_m + TRACK_MARGIN_M,
-                seed=track_seed(seed, index),
-            )
+            geometry = synthetic_track(true_spec, seed=track_seed(seed, index))
             response = rig.simulate(geometry, speed)
             accelerations = np.array(response.accelerations_m_s2, dtype=np.float64)
             if noise_m_s2 > 0.0:

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from susp_bo.rig.contact import WheelRailContact
 from susp_bo.rig.effects import apply_effects
-from susp_bo.rig.elements import DeadBands, Dampers, ElementGroup, SeriesDampers, Springs
+from susp_bo.rig.elements import Dampers, DeadBands, ElementGroup, SeriesDampers, Springs
 
 FloatArray = NDArray[np.float64]
 GRAVITY_M_S2 = 9.81
@@ -33,23 +33,57 @@ INPUTS_PER_AXLE = ("vertical", "cross_level", "alignment")
 
 _REQUIRED = {
     "carbody": ("mass", "roll_inertia", "pitch_inertia", "yaw_inertia", "cg_height"),
-    "bogie": ("mass", "roll_inertia", "pitch_inertia", "yaw_inertia", "cg_height",
-              "half_pivot_spacing", "half_wheelbase"),
+    "bogie": (
+        "mass",
+        "roll_inertia",
+        "pitch_inertia",
+        "yaw_inertia",
+        "cg_height",
+        "half_pivot_spacing",
+        "half_wheelbase",
+    ),
     "wheelset": ("mass", "yaw_inertia", "rolling_radius"),
-    "primary": ("longitudinal_stiffness", "lateral_stiffness", "vertical_stiffness",
-                "vertical_damping", "vertical_damper_slope_ratio", "vertical_damper_knee",
-                "lateral_half_spacing", "height"),
-    "secondary": ("longitudinal_stiffness", "lateral_stiffness", "vertical_stiffness",
-                  "lateral_half_spacing", "height", "vertical_damping",
-                  "vertical_damper_half_spacing", "lateral_damping",
-                  "lateral_damper_slope_ratio", "lateral_damper_knee"),
-    "yaw_damper": ("damping", "series_stiffness", "slope_ratio", "knee",
-                   "lateral_half_spacing", "height"),
+    "primary": (
+        "longitudinal_stiffness",
+        "lateral_stiffness",
+        "vertical_stiffness",
+        "vertical_damping",
+        "vertical_damper_slope_ratio",
+        "vertical_damper_knee",
+        "lateral_half_spacing",
+        "height",
+    ),
+    "secondary": (
+        "longitudinal_stiffness",
+        "lateral_stiffness",
+        "vertical_stiffness",
+        "lateral_half_spacing",
+        "height",
+        "vertical_damping",
+        "vertical_damper_half_spacing",
+        "lateral_damping",
+        "lateral_damper_slope_ratio",
+        "lateral_damper_knee",
+    ),
+    "yaw_damper": (
+        "damping",
+        "series_stiffness",
+        "slope_ratio",
+        "knee",
+        "lateral_half_spacing",
+        "height",
+    ),
     "anti_roll_bar": ("stiffness",),
     "bump_stop": ("stiffness", "gap", "smoothing"),
-    "contact": ("longitudinal_creep_coefficient", "lateral_creep_coefficient",
-                "equivalent_conicity", "half_contact_spacing", "flange_gap",
-                "flange_stiffness", "flange_smoothing"),
+    "contact": (
+        "longitudinal_creep_coefficient",
+        "lateral_creep_coefficient",
+        "equivalent_conicity",
+        "half_contact_spacing",
+        "flange_gap",
+        "flange_stiffness",
+        "flange_smoothing",
+    ),
 }
 
 
@@ -138,8 +172,9 @@ class _Builder:
         self.axle_of: dict[str, int] = {}
         self.rows: dict[str, list[tuple[str, FloatArray, FloatArray, dict[str, float]]]] = {}
 
-    def point_rows(self, body_name: str, location: tuple[float, float, float],
-                   axis: str) -> tuple[FloatArray, FloatArray]:
+    def point_rows(
+        self, body_name: str, location: tuple[float, float, float], axis: str
+    ) -> tuple[FloatArray, FloatArray]:
         """Small displacement of a body point along a world axis: (n,) on q, (n_in,) on x."""
         body = self.bodies[body_name]
         g = np.zeros(self.n)
@@ -169,15 +204,22 @@ class _Builder:
                 h[cross_level] += ry
         return g, h
 
-    def add(self, kind: str, name: str, lower: str, upper: str,
-            location: tuple[float, float, float], axis: str, **params: float) -> None:
+    def add(
+        self,
+        kind: str,
+        name: str,
+        lower: str,
+        upper: str,
+        location: tuple[float, float, float],
+        axis: str,
+        **params: float,
+    ) -> None:
         """An element between ``lower`` and ``upper`` at ``location`` along world ``axis``."""
         g_up, h_up = self.point_rows(upper, location, axis)
         g_lo, h_lo = self.point_rows(lower, location, axis)
         self.rows.setdefault(kind, []).append((name, g_up - g_lo, h_up - h_lo, params))
 
-    def add_rows(self, kind: str, name: str, g: FloatArray, h: FloatArray,
-                 **params: float) -> None:
+    def add_rows(self, kind: str, name: str, g: FloatArray, h: FloatArray, **params: float) -> None:
         """An element with explicit kinematic rows."""
         self.rows.setdefault(kind, []).append((name, g, h, params))
 
@@ -196,28 +238,54 @@ def _bodies(p: dict[str, float]) -> tuple[list[Body], FloatArray]:
     bodies: list[Body] = []
     index = 0
 
-    def add(name: str, kind: str, cg: tuple[float, float, float], mass: float,
-            inertia: tuple[float, float, float]) -> None:
+    def add(
+        name: str,
+        kind: str,
+        cg: tuple[float, float, float],
+        mass: float,
+        inertia: tuple[float, float, float],
+    ) -> None:
         nonlocal index
         count = len(RIGID_DOFS) if kind == "rigid" else len(WHEELSET_DOFS)
         bodies.append(Body(name, kind, cg, mass, inertia, tuple(range(index, index + count))))
         index += count
 
-    add("carbody", "rigid", (0.0, 0.0, p["carbody_cg_height"]), p["carbody_mass"],
-        (p["carbody_roll_inertia"], p["carbody_pitch_inertia"], p["carbody_yaw_inertia"]))
+    add(
+        "carbody",
+        "rigid",
+        (0.0, 0.0, p["carbody_cg_height"]),
+        p["carbody_mass"],
+        (p["carbody_roll_inertia"], p["carbody_pitch_inertia"], p["carbody_yaw_inertia"]),
+    )
     pivot = p["bogie_half_pivot_spacing"]
     for name, x in (("bogie_front", pivot), ("bogie_rear", -pivot)):
-        add(name, "rigid", (x, 0.0, p["bogie_cg_height"]), p["bogie_mass"],
-            (p["bogie_roll_inertia"], p["bogie_pitch_inertia"], p["bogie_yaw_inertia"]))
+        add(
+            name,
+            "rigid",
+            (x, 0.0, p["bogie_cg_height"]),
+            p["bogie_mass"],
+            (p["bogie_roll_inertia"], p["bogie_pitch_inertia"], p["bogie_yaw_inertia"]),
+        )
     half_wheelbase = p["bogie_half_wheelbase"]
-    axles = np.array([pivot + half_wheelbase, pivot - half_wheelbase,
-                      -pivot + half_wheelbase, -pivot - half_wheelbase])
+    axles = np.array(
+        [
+            pivot + half_wheelbase,
+            pivot - half_wheelbase,
+            -pivot + half_wheelbase,
+            -pivot - half_wheelbase,
+        ]
+    )
     radius = p["wheelset_rolling_radius"]
     roll = p.get("wheelset_roll_inertia", p["wheelset_yaw_inertia"])
     spin = p.get("wheelset_spin_inertia", 0.1 * p["wheelset_yaw_inertia"])
     for a, x in enumerate(axles):
-        add(f"wheelset_{a + 1}", "wheelset", (float(x), 0.0, radius), p["wheelset_mass"],
-            (roll, spin, p["wheelset_yaw_inertia"]))
+        add(
+            f"wheelset_{a + 1}",
+            "wheelset",
+            (float(x), 0.0, radius),
+            p["wheelset_mass"],
+            (roll, spin, p["wheelset_yaw_inertia"]),
+        )
     return bodies, axles
 
 
@@ -245,55 +313,120 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
                 at = (float(xa), sign * p["primary_lateral_half_spacing"], p["primary_height"])
                 tag = f"primary_{wheelset}_{side}"
                 for axis, key in (("x", "longitudinal"), ("y", "lateral"), ("z", "vertical")):
-                    builder.add("spring", f"{tag}_{axis}", wheelset, bogie, at, axis,
-                                stiffness=p[f"primary_{key}_stiffness"])
-                builder.add("damper", f"{tag}_vertical_damper", wheelset, bogie, at, "z",
-                            damping=p["primary_vertical_damping"],
-                            slope_ratio=p["primary_vertical_damper_slope_ratio"],
-                            knee=p["primary_vertical_damper_knee"])
+                    builder.add(
+                        "spring",
+                        f"{tag}_{axis}",
+                        wheelset,
+                        bogie,
+                        at,
+                        axis,
+                        stiffness=p[f"primary_{key}_stiffness"],
+                    )
+                builder.add(
+                    "damper",
+                    f"{tag}_vertical_damper",
+                    wheelset,
+                    bogie,
+                    at,
+                    "z",
+                    damping=p["primary_vertical_damping"],
+                    slope_ratio=p["primary_vertical_damper_slope_ratio"],
+                    knee=p["primary_vertical_damper_knee"],
+                )
         # secondary suspension
         h2 = p["secondary_height"]
         for side, sign in (("left", 1.0), ("right", -1.0)):
             at = (xb, sign * p["secondary_lateral_half_spacing"], h2)
             tag = f"secondary_{bogie}_{side}"
             for axis, key in (("x", "longitudinal"), ("y", "lateral"), ("z", "vertical")):
-                builder.add("spring", f"{tag}_{axis}", bogie, "carbody", at, axis,
-                            stiffness=p[f"secondary_{key}_stiffness"])
+                builder.add(
+                    "spring",
+                    f"{tag}_{axis}",
+                    bogie,
+                    "carbody",
+                    at,
+                    axis,
+                    stiffness=p[f"secondary_{key}_stiffness"],
+                )
             at_damper = (xb, sign * p["secondary_vertical_damper_half_spacing"], h2)
-            builder.add("damper", f"{tag}_vertical_damper", bogie, "carbody", at_damper, "z",
-                        damping=p["secondary_vertical_damping"], slope_ratio=1.0, knee=np.inf)
+            builder.add(
+                "damper",
+                f"{tag}_vertical_damper",
+                bogie,
+                "carbody",
+                at_damper,
+                "z",
+                damping=p["secondary_vertical_damping"],
+                slope_ratio=1.0,
+                knee=np.inf,
+            )
             at_yaw = (xb, sign * p["yaw_damper_lateral_half_spacing"], p["yaw_damper_height"])
-            builder.add("series", f"yaw_damper_{bogie}_{side}", bogie, "carbody", at_yaw, "x",
-                        stiffness=p["yaw_damper_series_stiffness"],
-                        damping=p["yaw_damper_damping"],
-                        slope_ratio=p["yaw_damper_slope_ratio"], knee=p["yaw_damper_knee"])
-        builder.add("damper", f"secondary_{bogie}_lateral_damper", bogie, "carbody",
-                    (xb, 0.0, h2), "y", damping=p["secondary_lateral_damping"],
-                    slope_ratio=p["secondary_lateral_damper_slope_ratio"],
-                    knee=p["secondary_lateral_damper_knee"])
-        builder.add("dead_band", f"bump_stop_{bogie}", bogie, "carbody", (xb, 0.0, h2), "y",
-                    stiffness=p["bump_stop_stiffness"], gap=p["bump_stop_gap"],
-                    smoothing=p["bump_stop_smoothing"])
+            builder.add(
+                "series",
+                f"yaw_damper_{bogie}_{side}",
+                bogie,
+                "carbody",
+                at_yaw,
+                "x",
+                stiffness=p["yaw_damper_series_stiffness"],
+                damping=p["yaw_damper_damping"],
+                slope_ratio=p["yaw_damper_slope_ratio"],
+                knee=p["yaw_damper_knee"],
+            )
+        builder.add(
+            "damper",
+            f"secondary_{bogie}_lateral_damper",
+            bogie,
+            "carbody",
+            (xb, 0.0, h2),
+            "y",
+            damping=p["secondary_lateral_damping"],
+            slope_ratio=p["secondary_lateral_damper_slope_ratio"],
+            knee=p["secondary_lateral_damper_knee"],
+        )
+        builder.add(
+            "dead_band",
+            f"bump_stop_{bogie}",
+            bogie,
+            "carbody",
+            (xb, 0.0, h2),
+            "y",
+            stiffness=p["bump_stop_stiffness"],
+            gap=p["bump_stop_gap"],
+            smoothing=p["bump_stop_smoothing"],
+        )
         roll_row = np.zeros(builder.n)
         roll_row[builder.bodies["carbody"].dofs[2]] += 1.0
         roll_row[builder.bodies[bogie].dofs[2]] -= 1.0
-        builder.add_rows("spring", f"anti_roll_bar_{bogie}", roll_row,
-                         np.zeros(builder.n_inputs), stiffness=p["anti_roll_bar_stiffness"])
+        builder.add_rows(
+            "spring",
+            f"anti_roll_bar_{bogie}",
+            roll_row,
+            np.zeros(builder.n_inputs),
+            stiffness=p["anti_roll_bar_stiffness"],
+        )
     for a in range(len(axles)):  # flange contact: dead band on wheelset-track lateral offset
         wheelset = builder.bodies[f"wheelset_{a + 1}"]
         g = np.zeros(builder.n)
         h = np.zeros(builder.n_inputs)
         g[wheelset.dofs[0]] = 1.0
         h[3 * a + 2] = -1.0
-        builder.add_rows("dead_band", f"flange_{wheelset.name}", g, h,
-                         stiffness=p["contact_flange_stiffness"], gap=p["contact_flange_gap"],
-                         smoothing=p["contact_flange_smoothing"])
+        builder.add_rows(
+            "dead_band",
+            f"flange_{wheelset.name}",
+            g,
+            h,
+            stiffness=p["contact_flange_stiffness"],
+            gap=p["contact_flange_gap"],
+            smoothing=p["contact_flange_smoothing"],
+        )
     apply_effects(spec, builder)  # extension point: optional physical effects
     return _finish(builder, bodies, axles, p, spec)
 
 
-def _finish(builder: _Builder, bodies: list[Body], axles: FloatArray, p: dict[str, float],
-            spec: object) -> Assembly:
+def _finish(
+    builder: _Builder, bodies: list[Body], axles: FloatArray, p: dict[str, float], spec: object
+) -> Assembly:
     spring_group, spring_p = builder.group("spring")
     damper_group, damper_p = builder.group("damper")
     dead_group, dead_p = builder.group("dead_band")
@@ -322,26 +455,42 @@ def _finish(builder: _Builder, bodies: list[Body], axles: FloatArray, p: dict[st
         acceleration[row], _ = builder.point_rows(sensor.body, sensor.position_m, axis)
         if axis == "y":  # specific force in the body frame: gravity picked up through roll
             displacement[row, builder.bodies[sensor.body].dofs[2]] = GRAVITY_M_S2
-    names = tuple(f"{b.name}.{d}" for b in bodies
-                  for d in (RIGID_DOFS if b.kind == "rigid" else WHEELSET_DOFS))
-    mass = np.concatenate([
-        [b.mass, b.mass, *b.inertia] if b.kind == "rigid" else [b.mass, b.inertia[2]]
+    names = tuple(
+        f"{b.name}.{d}"
         for b in bodies
-    ])
+        for d in (RIGID_DOFS if b.kind == "rigid" else WHEELSET_DOFS)
+    )
+    mass = np.concatenate(
+        [
+            [b.mass, b.mass, *b.inertia] if b.kind == "rigid" else [b.mass, b.inertia[2]]
+            for b in bodies
+        ]
+    )
     return Assembly(
         bodies=tuple(bodies),
         dof_names=names,
         mass_diagonal=mass.astype(np.float64),
         axle_positions_m=axles,
         springs=Springs(spring_group, spring_p.get("stiffness", np.zeros(0))),
-        dampers=Dampers(damper_group, damper_p.get("damping", np.zeros(0)),
-                        damper_p.get("slope_ratio", np.zeros(0)), damper_p.get("knee", np.zeros(0))),
-        dead_bands=DeadBands(dead_group, dead_p.get("stiffness", np.zeros(0)),
-                             dead_p.get("gap", np.zeros(0)), dead_p.get("smoothing", np.zeros(0))),
-        series=SeriesDampers(series_group, series_p.get("stiffness", np.zeros(0)),
-                             series_p.get("damping", np.zeros(0)),
-                             series_p.get("slope_ratio", np.zeros(0)),
-                             series_p.get("knee", np.zeros(0))),
+        dampers=Dampers(
+            damper_group,
+            damper_p.get("damping", np.zeros(0)),
+            damper_p.get("slope_ratio", np.zeros(0)),
+            damper_p.get("knee", np.zeros(0)),
+        ),
+        dead_bands=DeadBands(
+            dead_group,
+            dead_p.get("stiffness", np.zeros(0)),
+            dead_p.get("gap", np.zeros(0)),
+            dead_p.get("smoothing", np.zeros(0)),
+        ),
+        series=SeriesDampers(
+            series_group,
+            series_p.get("stiffness", np.zeros(0)),
+            series_p.get("damping", np.zeros(0)),
+            series_p.get("slope_ratio", np.zeros(0)),
+            series_p.get("knee", np.zeros(0)),
+        ),
         contact=contact,
         sensor_acceleration=acceleration,
         sensor_displacement=displacement,
@@ -355,14 +504,28 @@ def free_wheelset_assembly(spec: object) -> Assembly:
     Uses the wheelset and contact parameters of ``spec``; no sensors.
     """
     p = dict(spec.parameters)  # type: ignore[attr-defined]
-    body = Body("wheelset_1", "wheelset", (0.0, 0.0, p["wheelset_rolling_radius"]),
-                p["wheelset_mass"], (p.get("wheelset_roll_inertia", p["wheelset_yaw_inertia"]),
-                                     p.get("wheelset_spin_inertia", 0.0),
-                                     p["wheelset_yaw_inertia"]), (0, 1))
+    body = Body(
+        "wheelset_1",
+        "wheelset",
+        (0.0, 0.0, p["wheelset_rolling_radius"]),
+        p["wheelset_mass"],
+        (
+            p.get("wheelset_roll_inertia", p["wheelset_yaw_inertia"]),
+            p.get("wheelset_spin_inertia", 0.0),
+            p["wheelset_yaw_inertia"],
+        ),
+        (0, 1),
+    )
     builder = _Builder([body], len(INPUTS_PER_AXLE))
-    builder.add_rows("dead_band", "flange_wheelset_1", np.array([1.0, 0.0]),
-                     np.array([0.0, 0.0, -1.0]), stiffness=p["contact_flange_stiffness"],
-                     gap=p["contact_flange_gap"], smoothing=p["contact_flange_smoothing"])
+    builder.add_rows(
+        "dead_band",
+        "flange_wheelset_1",
+        np.array([1.0, 0.0]),
+        np.array([0.0, 0.0, -1.0]),
+        stiffness=p["contact_flange_stiffness"],
+        gap=p["contact_flange_gap"],
+        smoothing=p["contact_flange_smoothing"],
+    )
 
     class _NoSensors:
         sensors: tuple[object, ...] = ()

@@ -29,8 +29,9 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
 
-def klingel_wavelength(rolling_radius_m: float, half_contact_spacing_m: float,
-                       conicity: float) -> float:
+def klingel_wavelength(
+    rolling_radius_m: float, half_contact_spacing_m: float, conicity: float
+) -> float:
     """Kinematic (Klingel) wavelength ``2π √(r0 b / λ)`` (m)."""
     return 2.0 * math.pi * math.sqrt(rolling_radius_m * half_contact_spacing_m / conicity)
 
@@ -59,8 +60,9 @@ class WheelRailContact:
     rolling_radius: float
     half_contact_spacing: float
 
-    def creep_forces(self, q: FloatArray, qdot: FloatArray, x: FloatArray, xdot: FloatArray,
-                     speed_m_s: float) -> tuple[FloatArray, FloatArray]:
+    def creep_forces(
+        self, q: FloatArray, qdot: FloatArray, x: FloatArray, xdot: FloatArray, speed_m_s: float
+    ) -> tuple[FloatArray, FloatArray]:
         """Creep lateral forces (N) and yaw moments (N·m) on the wheelsets, each (n_w,).
 
         Args:
@@ -72,8 +74,11 @@ class WheelRailContact:
         relative_rate = qdot[self.lateral_dof] - xdot[self.alignment_input]
         b = self.half_contact_spacing
         lateral = -2.0 * self.lateral_creep * (relative_rate / speed_m_s - q[self.yaw_dof])
-        moment = -2.0 * self.longitudinal_creep * b * (
-            b * qdot[self.yaw_dof] / speed_m_s + self.conicity * relative / self.rolling_radius
+        moment = (
+            -2.0
+            * self.longitudinal_creep
+            * b
+            * (b * qdot[self.yaw_dof] / speed_m_s + self.conicity * relative / self.rolling_radius)
         )
         return lateral, moment
 

@@ -13,13 +13,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import Assembly
-from susp_bo.rig.elements import bilinear_force, bilinear_velocity, dead_band_force
+from susp_bo.rig.elements import dead_band_force
 
 FloatArray = NDArray[np.float64]
 
 
 class ForceModel:
     """``Q(q, q̇, x, ẋ, V, s)`` for one assembly.
+
+    Elements whose law is linear (springs, dampers without a knee) and the creep
+    forces are folded into one matrix acting on ``[q, x, q̇, ẋ, (q̇, ẋ)/V]``; only
+    the nonlinear elements (bilinear dampers, dead bands, series dampers) are
+    evaluated element by element, all bilinear laws in one vectorised call.
 
     Args:
         assembly: the vehicle.
@@ -29,46 +34,74 @@ class ForceModel:
     """
 
     def __init__(self, assembly: Assembly, linear_elements: bool = False) -> None:
-        groups = (assembly.springs.group, assembly.dead_bands.group, assembly.dampers.group,
-                  assembly.series.group)
-        sizes = [g.size for g in groups]
-        edges = np.cumsum([0, *sizes])
-        self.spring = slice(edges[0], edges[1])
-        self.dead = slice(edges[1], edges[2])
-        self.damper = slice(edges[2], edges[3])
-        self.series = slice(edges[3], edges[4])
-        g = np.vstack([grp.coordinates for grp in groups])
-        h = np.vstack([grp.inputs for grp in groups])
-        self.n = assembly.n_dofs
+        self.n = n = assembly.n_dofs
         self.n_in = assembly.n_inputs
-        self.kinematics = np.ascontiguousarray(np.hstack([g, h]))  # (m x (n + n_in))
-        self.transpose = np.ascontiguousarray(-g.T)  # (n x m): Q = -Gᵀ f
-        contact = assembly.contact.matrices(self.n, self.n_in, 1.0)
-        self.creep_stiffness = -np.hstack([contact["stiffness"], -contact["input_stiffness"]])
-        self.creep_damping = -np.hstack([contact["damping"], -contact["input_damping"]])
-        self.k_spring = assembly.springs.stiffness
-        self.linear_elements = linear_elements
-        dead = assembly.dead_bands
-        self.dead_params = (dead.stiffness, dead.gap, dead.smoothing)
-        self.k_dead_linear = dead.slope()
-        dampers = assembly.dampers
-        self.damper_params = (dampers.damping, dampers.slope_ratio, dampers.knee)
-        series = assembly.series
-        self.k_series = series.stiffness
-        self.series_params = (series.damping, series.slope_ratio, series.knee)
+        width = n + self.n_in
+        springs, dead, dampers, series = (
+            assembly.springs,
+            assembly.dead_bands,
+            assembly.dampers,
+            assembly.series,
+        )
+
+        def rows(group: object) -> FloatArray:
+            return np.hstack([group.coordinates, group.inputs])  # type: ignore[attr-defined]
+
+        bilinear = (dampers.knee < np.inf) & (dampers.slope_ratio != 1.0) & (not linear_elements)
+        stiffness = rows(springs.group).T @ (springs.stiffness[:, None] * rows(springs.group))
+        damper_rows = rows(dampers.group)
+        linear_c = np.where(bilinear, 0.0, dampers.damping)
+        damping = damper_rows.T @ (linear_c[:, None] * damper_rows)
         if linear_elements:
-            ones = np.ones_like(series.damping)
-            self.series_params = (series.damping, ones, np.full_like(ones, np.inf))
-        self.state = np.zeros((self.n + self.n_in, 2))
-        self.forces = np.zeros(g.shape[0])
+            dead_rows = rows(dead.group)
+            stiffness += dead_rows.T @ (dead.slope()[:, None] * dead_rows)
+        contact = assembly.contact.matrices(n, self.n_in, 1.0)
+        creep_k = np.hstack([contact["stiffness"], -contact["input_stiffness"]])
+        creep_c = np.hstack([contact["damping"], -contact["input_damping"]])
+        # Q_linear = L @ [z, ż, ż / V] with z = [q, x]
+        self.linear = np.ascontiguousarray(
+            -np.hstack([stiffness[:n] + creep_k, damping[:n], creep_c])
+        )
+        self.stacked = np.zeros(3 * width)
+        # nonlinear rows: [bilinear dampers (velocity), dead bands (position), series (position)]
+        self.dead_on = not linear_elements and dead.group.size > 0
+        nonlinear = [damper_rows[bilinear]]
+        if self.dead_on:
+            nonlinear.append(rows(dead.group))
+        nonlinear.append(rows(series.group))
+        g_nl = np.vstack(nonlinear)
+        self.n_bilinear = int(bilinear.sum())
+        self.n_dead = dead.group.size if self.dead_on else 0
+        self.n_series = series.group.size
+        self.kinematics = np.ascontiguousarray(g_nl)  # (m_nl x width)
+        self.transpose = np.ascontiguousarray(-g_nl[:, :n].T)  # (n x m_nl)
+        self.dead_params = (dead.stiffness, dead.gap, dead.smoothing)
+        self.k_series = series.stiffness
+        # one bilinear evaluation for dampers (v -> f / c) and series strokes (f / c -> v):
+        # out = clip(a, ±knee) + slope · (a - clip), then scaled
+        series_ratio = np.ones(self.n_series) if linear_elements else series.slope_ratio
+        series_knee = np.full(self.n_series, np.inf) if linear_elements else series.knee
+        self.knee = np.concatenate([dampers.knee[bilinear], series_knee])
+        self.slope = np.concatenate([dampers.slope_ratio[bilinear], 1.0 / series_ratio])
+        self.scale_in = np.concatenate([np.ones(self.n_bilinear), 1.0 / series.damping])
+        self.scale_out = np.concatenate([dampers.damping[bilinear], np.ones(self.n_series)])
+        self.argument = np.zeros(self.n_bilinear + self.n_series)
+        self.forces = np.zeros(g_nl.shape[0])
 
     @property
     def n_strokes(self) -> int:
         """Number of series-damper strokes (internal states)."""
-        return self.series.stop - self.series.start
+        return self.n_series
 
-    def __call__(self, q: FloatArray, qdot: FloatArray, x: FloatArray, xdot: FloatArray,
-                 speed_m_s: float, stroke: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def __call__(
+        self,
+        q: FloatArray,
+        qdot: FloatArray,
+        x: FloatArray,
+        xdot: FloatArray,
+        speed_m_s: float,
+        stroke: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:
         """Generalised forces (n,) and stroke rates (n_s,) m/s.
 
         Args:
@@ -77,23 +110,27 @@ class ForceModel:
             speed_m_s: speed (m/s).
             stroke: series-damper strokes (n_s,) m.
         """
-        state = self.state
-        n = self.n
-        state[:n, 0] = q
-        state[:n, 1] = qdot
-        state[n:, 0] = x
-        state[n:, 1] = xdot
-        uv = self.kinematics @ state  # (m x 2): element coordinates and rates
+        z = self.stacked
+        n, width = self.n, self.n + self.n_in
+        z[:n] = q
+        z[n:width] = x
+        z[width : width + n] = qdot
+        z[width + n : 2 * width] = xdot
+        z[2 * width :] = z[width : 2 * width] / speed_m_s
+        generalised = self.linear @ z
+        nb, nd = self.n_bilinear, self.n_dead
+        position = self.kinematics @ z[:width]
         f = self.forces
-        f[self.spring] = self.k_spring * uv[self.spring, 0]
-        if self.linear_elements:
-            f[self.dead] = self.k_dead_linear * uv[self.dead, 0]
-            f[self.damper] = self.damper_params[0] * uv[self.damper, 1]
-        else:
-            f[self.dead] = dead_band_force(uv[self.dead, 0], *self.dead_params)
-            f[self.damper] = bilinear_force(uv[self.damper, 1], *self.damper_params)
-        series_force = self.k_series * (uv[self.series, 0] - stroke)
-        f[self.series] = series_force
-        generalised = (self.transpose @ f + self.creep_stiffness @ state[:, 0]
-                       + self.creep_damping @ state[:, 1] / speed_m_s)
-        return generalised, bilinear_velocity(series_force, *self.series_params)
+        argument = self.argument
+        argument[:nb] = self.kinematics[:nb] @ z[width : 2 * width]
+        if nd:
+            f[nb : nb + nd] = dead_band_force(position[nb : nb + nd], *self.dead_params)
+        series_force = self.k_series * (position[nb + nd :] - stroke)
+        f[nb + nd :] = series_force
+        argument[nb:] = series_force
+        scaled = argument * self.scale_in
+        clipped = np.clip(scaled, -self.knee, self.knee)
+        law = (clipped + self.slope * (scaled - clipped)) * self.scale_out
+        f[:nb] = law[:nb]
+        generalised += self.transpose @ f
+        return generalised, law[nb:]

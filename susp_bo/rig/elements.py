@@ -29,38 +29,48 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 
-def bilinear_force(velocity: FloatArray, damping: FloatArray, slope_ratio: FloatArray,
-                   knee: FloatArray) -> FloatArray:
+def bilinear_force(
+    velocity: FloatArray, damping: FloatArray, slope_ratio: FloatArray, knee: FloatArray
+) -> FloatArray:
     """Force of bilinear dampers (N) at velocities (m/s), elementwise.
 
     ``f = c v`` for ``|v| <= knee``, then slope ``slope_ratio · c`` beyond the knee.
     """
     speed = np.abs(velocity)
-    return np.sign(velocity) * damping * (
-        np.minimum(speed, knee) + slope_ratio * np.maximum(speed - knee, 0.0)
+    return (
+        np.sign(velocity)
+        * damping
+        * (np.minimum(speed, knee) + slope_ratio * np.maximum(speed - knee, 0.0))
     )
 
 
-def bilinear_velocity(force: FloatArray, damping: FloatArray, slope_ratio: FloatArray,
-                      knee: FloatArray) -> FloatArray:
+def bilinear_velocity(
+    force: FloatArray, damping: FloatArray, slope_ratio: FloatArray, knee: FloatArray
+) -> FloatArray:
     """Inverse of :func:`bilinear_force`: the damper velocity (m/s) carrying ``force`` (N).
 
     Requires ``damping > 0`` and ``slope_ratio > 0``.
     """
     reduced = np.abs(force) / damping
-    return np.sign(force) * (np.minimum(reduced, knee) + np.maximum(reduced - knee, 0.0)
-                             / slope_ratio)
+    return np.sign(force) * (
+        np.minimum(reduced, knee) + np.maximum(reduced - knee, 0.0) / slope_ratio
+    )
 
 
-def dead_band_force(displacement: FloatArray, stiffness: FloatArray, gap: FloatArray,
-                    smoothing: FloatArray) -> FloatArray:
+def dead_band_force(
+    displacement: FloatArray, stiffness: FloatArray, gap: FloatArray, smoothing: FloatArray
+) -> FloatArray:
     """Smoothed dead-band spring (N): ≈0 inside ``|u| < gap``, slope ``k`` beyond it.
 
     ``f = k s (softplus((u - gap)/s) - softplus((-u - gap)/s))`` with smoothing length ``s``.
     """
-    return stiffness * smoothing * (
-        np.logaddexp(0.0, (displacement - gap) / smoothing)
-        - np.logaddexp(0.0, (-displacement - gap) / smoothing)
+    return (
+        stiffness
+        * smoothing
+        * (
+            np.logaddexp(0.0, (displacement - gap) / smoothing)
+            - np.logaddexp(0.0, (-displacement - gap) / smoothing)
+        )
     )
 
 
@@ -174,7 +184,9 @@ def linearised(elements: Dampers | DeadBands) -> Springs | Dampers:
     """The element group with its force law replaced by the slope at the origin."""
     if isinstance(elements, Dampers):
         return Dampers(
-            elements.group, elements.damping, np.ones_like(elements.damping),
+            elements.group,
+            elements.damping,
+            np.ones_like(elements.damping),
             np.full_like(elements.damping, np.inf),
         )
     return Springs(elements.group, elements.slope())

@@ -29,14 +29,19 @@ from numpy.typing import NDArray
 from susp_bo.rig.assembly import INPUTS_PER_AXLE, Assembly, build_assembly
 from susp_bo.rig.response import RigResponse
 from susp_bo.rig.sensors import sample_decimated
-from susp_bo.rig.spectra import Spectra, SpectrumSettings
 from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.spectra import Spectra, SpectrumSettings
 from susp_bo.rig.track import AxleExcitation, TrackGeometry, TrackPSD
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
-_COORDINATE_MEANING = {"y": "lateral", "z": "bounce", "roll": "roll", "pitch": "pitch",
-                       "yaw": "yaw"}
+_COORDINATE_MEANING = {
+    "y": "lateral",
+    "z": "bounce",
+    "roll": "roll",
+    "pitch": "pitch",
+    "yaw": "yaw",
+}
 _PSD_COMPONENTS = ("vertical", "cross_level", "alignment")
 
 
@@ -74,8 +79,11 @@ def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
         g, h, slope = elements.group.coordinates, elements.group.inputs, elements.slope()
         k += g.T @ (slope[:, None] * g)
         k_in -= g.T @ (slope[:, None] * h)
-    g, h, slope = assembly.dampers.group.coordinates, assembly.dampers.group.inputs, \
-        assembly.dampers.slope()
+    g, h, slope = (
+        assembly.dampers.group.coordinates,
+        assembly.dampers.group.inputs,
+        assembly.dampers.slope(),
+    )
     c += g.T @ (slope[:, None] * g)
     c_in -= g.T @ (slope[:, None] * h)
     contact = assembly.contact.matrices(n, n_in, speed_m_s)
@@ -84,62 +92,92 @@ def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
     k_in += contact["input_stiffness"]
     c_in += contact["input_damping"]
     series = assembly.series
-    gs, hs, ks, cs = series.group.coordinates, series.group.inputs, series.stiffness, \
-        series.damping
+    gs, hs, ks, cs = series.group.coordinates, series.group.inputs, series.stiffness, series.damping
     n_s = series.group.size
     k += gs.T @ (ks[:, None] * gs)
     k_in -= gs.T @ (ks[:, None] * hs)
     m_inv = 1.0 / assembly.mass_diagonal
     size = 2 * n + n_s
     a = np.zeros((size, size))
-    a[:n, n:2 * n] = np.eye(n)
-    a[n:2 * n, :n] = -m_inv[:, None] * k
-    a[n:2 * n, n:2 * n] = -m_inv[:, None] * c
-    a[n:2 * n, 2 * n:] = m_inv[:, None] * (gs.T * ks[None, :])  # + Gᵀ k_s s
+    a[:n, n : 2 * n] = np.eye(n)
+    a[n : 2 * n, :n] = -m_inv[:, None] * k
+    a[n : 2 * n, n : 2 * n] = -m_inv[:, None] * c
+    a[n : 2 * n, 2 * n :] = m_inv[:, None] * (gs.T * ks[None, :])  # + Gᵀ k_s s
     rate = (ks / cs)[:, None]
-    a[2 * n:, :n] = rate * gs
-    a[2 * n:, 2 * n:] = -np.diag(ks / cs)
+    a[2 * n :, :n] = rate * gs
+    a[2 * n :, 2 * n :] = -np.diag(ks / cs)
     b = np.zeros((size, n_in))
     b_rate = np.zeros((size, n_in))
-    b[n:2 * n] = m_inv[:, None] * k_in
-    b_rate[n:2 * n] = m_inv[:, None] * c_in
-    b[2 * n:] = rate * hs
+    b[n : 2 * n] = m_inv[:, None] * k_in
+    b_rate[n : 2 * n] = m_inv[:, None] * c_in
+    b[2 * n :] = rate * hs
     return StateSpace(a, b, b_rate, n, assembly)
 
 
-def sensor_transfer(system: StateSpace, frequencies_hz: FloatArray,
-                    sample_rate_hz: float | None = None) -> ComplexArray:
+def sensor_transfer(
+    system: StateSpace,
+    frequencies_hz: FloatArray,
+    sample_rate_hz: float | None = None,
+    method: str = "modal",
+) -> ComplexArray:
     """Sensor response to unit harmonic inputs: (F x C x n_in), (m/s²) per input unit.
 
-    With ``sample_rate_hz``, the sensor model of the time-domain rig is included:
-    accelerations averaged over one sample interval (sinc) and gravity pick-up
-    averaged over its end points (cosine).
+    Args:
+        system: the linearised rig.
+        frequencies_hz: (F,) Hz.
+        sample_rate_hz: when given, the sensor model of the time-domain rig is
+            included: accelerations averaged over one sample interval (sinc) and
+            gravity pick-up averaged over its end points (cosine).
+        method: ``modal`` (diagonalise A once: fast) or ``solve`` (one linear
+            solve per frequency: the reference).
     """
     f = np.asarray(frequencies_hz, dtype=np.float64)
     omega = 2.0 * np.pi * f
     n = system.n_dofs
+    acc_rows = system.assembly.sensor_acceleration
+    disp_rows = system.assembly.sensor_displacement
+    acc_gain = 1j * omega
+    disp_gain = np.ones_like(omega)
+    if sample_rate_hz is not None:
+        acc_gain = acc_gain * np.sinc(f / sample_rate_hz)
+        disp_gain = disp_gain * np.cos(np.pi * f / sample_rate_hz)
+    if method == "modal":
+        values, vectors = np.linalg.eig(system.a)
+        inverse = np.linalg.inv(vectors)
+        forcing = inverse @ system.b  # (N x n_in)
+        forcing_rate = inverse @ system.b_rate
+        out_acc = acc_rows @ vectors[n : 2 * n]  # (C x N)
+        out_disp = disp_rows @ vectors[:n]
+        response = 1.0 / (1j * omega[:, None] - values[None, :])  # (F x N)
+        outputs = (
+            acc_gain[:, None, None] * out_acc[None] + disp_gain[:, None, None] * out_disp[None]
+        ) * response[:, None, :]  # (F x C x N)
+        return outputs @ forcing + (1j * omega)[:, None, None] * (outputs @ forcing_rate)
+    if method != "solve":
+        raise ValueError(f"sensor_transfer.method: got {method!r}; allowed 'modal', 'solve'")
     size = system.a.shape[0]
     lhs = 1j * omega[:, None, None] * np.eye(size)[None] - system.a[None]
     rhs = system.b[None] + 1j * omega[:, None, None] * system.b_rate[None]
     z = np.linalg.solve(lhs, rhs)  # (F x size x n_in)
-    q = z[:, :n]
-    accel = 1j * omega[:, None, None] * z[:, n:2 * n]
-    acc_part = np.einsum("cn,fni->fci", system.assembly.sensor_acceleration, accel)
-    disp_part = np.einsum("cn,fni->fci", system.assembly.sensor_displacement, q)
-    if sample_rate_hz is not None:
-        acc_part = acc_part * np.sinc(f / sample_rate_hz)[:, None, None]
-        disp_part = disp_part * np.cos(np.pi * f / sample_rate_hz)[:, None, None]
+    acc_part = np.einsum("cn,fni->fci", acc_rows, z[:, n : 2 * n]) * acc_gain[:, None, None]
+    disp_part = np.einsum("cn,fni->fci", disp_rows, z[:, :n]) * disp_gain[:, None, None]
     return acc_part + disp_part
 
 
 def _hann_kernel(offsets_hz: FloatArray, segment_s: float) -> FloatArray:
-    """|Ŵ(ν)|² of a unit-power Hann window of length T, normalised to unit area (1/Hz)."""
+    """|Ŵ(ν)|² of a Hann window of length T, each row normalised to unit area (1/Hz).
+
+    Args:
+        offsets_hz: frequency offsets on a regular grid, (..., K) Hz.
+        segment_s: window length T (s).
+    """
     x = offsets_hz * segment_s
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.sinc(x) / (1.0 - x * x)
-    w = np.where(np.isclose(np.abs(x), 1.0), 0.5, w)
+    near_one = np.isclose(np.abs(x), 1.0)
+    w = np.sinc(x) / np.where(near_one, 1.0, 1.0 - x * x)
+    w = np.where(near_one, 0.5, w)
     kernel = w * w
-    return kernel / (np.sum(kernel) * (offsets_hz[1] - offsets_hz[0]))
+    spacing = offsets_hz[..., 1] - offsets_hz[..., 0]
+    return kernel / (np.sum(kernel, axis=-1) * spacing)[..., None]
 
 
 class LinearisedRig:
@@ -156,14 +194,16 @@ class LinearisedRig:
         spec = self.spec.with_parameters(parameters)
         return state_space(build_assembly(spec), speed_m_s)
 
-    def eigenvalues(self, parameters: Mapping[str, float] | None = None,
-                    speed_m_s: float | None = None) -> ComplexArray:
+    def eigenvalues(
+        self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
+    ) -> ComplexArray:
         """Eigenvalues of the state matrix (1/s); stable when every real part is < 0."""
         speed = self.spec.simulation.speed_m_s if speed_m_s is None else speed_m_s
         return np.linalg.eigvals(self._system(parameters, speed).a)
 
-    def modes(self, parameters: Mapping[str, float] | None = None,
-              speed_m_s: float | None = None) -> list[Mode]:
+    def modes(
+        self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
+    ) -> list[Mode]:
         """Oscillatory modes, sorted by frequency, named ``<body kind>_<motion>``.
 
         The name is the (body kind, coordinate) pair with the largest share of the
@@ -179,18 +219,26 @@ class LinearisedRig:
         for value, vector in zip(values, vectors.T):
             if value.imag <= 1e-6:
                 continue
-            energy = assembly.mass_diagonal * np.abs(vector[n:2 * n]) ** 2
+            energy = assembly.mass_diagonal * np.abs(vector[n : 2 * n]) ** 2
             shares: dict[str, float] = {}
             for label, e in zip(labels, energy):
                 shares[label] = shares.get(label, 0.0) + float(e)
             total = sum(shares.values())
             name = max(shares, key=shares.__getitem__)
-            modes.append(Mode(name, float(abs(value)) / (2 * np.pi),
-                              float(-value.real / abs(value)), shares[name] / total))
+            modes.append(
+                Mode(
+                    name,
+                    float(abs(value)) / (2 * np.pi),
+                    float(-value.real / abs(value)),
+                    shares[name] / total,
+                )
+            )
         return sorted(modes, key=lambda m: m.frequency_hz)
 
-    def modal_frequencies_hz(self, parameters: Mapping[str, float] | None = None,
-                             ) -> dict[str, float]:
+    def modal_frequencies_hz(
+        self,
+        parameters: Mapping[str, float] | None = None,
+    ) -> dict[str, float]:
         """Undamped natural frequencies (Hz) of the vehicle on rigid track, by mode name.
 
         Dampers are removed (the series yaw dampers with them), the wheelsets are
@@ -218,9 +266,14 @@ class LinearisedRig:
             result.setdefault(name, float(np.sqrt(max(value, 0.0))) / (2 * np.pi))
         return result
 
-    def psd(self, frequencies_hz: FloatArray, parameters: Mapping[str, float] | None = None,
-            psd: TrackPSD | None = None, speed_m_s: float | None = None,
-            components: tuple[str, ...] = INPUTS_PER_AXLE) -> FloatArray:
+    def psd(
+        self,
+        frequencies_hz: FloatArray,
+        parameters: Mapping[str, float] | None = None,
+        psd: TrackPSD | None = None,
+        speed_m_s: float | None = None,
+        components: tuple[str, ...] = INPUTS_PER_AXLE,
+    ) -> FloatArray:
         """One-sided acceleration PSD of every sensor, (F x C) (m/s²)²/Hz, on random track.
 
         Args:
@@ -240,21 +293,26 @@ class LinearisedRig:
         delays = np.exp(1j * omega[:, None] * axles[None, :] / speed)  # (F x n_axles)
         wavenumber = omega / speed
         psd_time = {
-            "vertical": psd.vertical(wavenumber), "cross_level": psd.cross_level(wavenumber),
+            "vertical": psd.vertical(wavenumber),
+            "cross_level": psd.cross_level(wavenumber),
             "alignment": psd.alignment(wavenumber),
         }
         power = np.zeros((fine.size, transfer.shape[1]))
         for c, component in enumerate(INPUTS_PER_AXLE):
             if component not in components:
                 continue
-            columns = transfer[:, :, c::len(INPUTS_PER_AXLE)]  # (F x C x n_axles)
+            columns = transfer[:, :, c :: len(INPUTS_PER_AXLE)]  # (F x C x n_axles)
             combined = np.einsum("fca,fa->fc", columns, delays)
             power += np.abs(combined) ** 2 * (psd_time[component] * 2 * np.pi / speed)[:, None]
         return power
 
-    def spectra(self, parameters: Mapping[str, float] | None = None,
-                psd: TrackPSD | None = None, speed_m_s: float | None = None,
-                settings: SpectrumSettings | None = None) -> Spectra:
+    def spectra(
+        self,
+        parameters: Mapping[str, float] | None = None,
+        psd: TrackPSD | None = None,
+        speed_m_s: float | None = None,
+        settings: SpectrumSettings | None = None,
+    ) -> Spectra:
         """Expected Welch log-amplitude spectra on random track (the fast path).
 
         Args:
@@ -276,17 +334,21 @@ class LinearisedRig:
         bins = np.arange(0.0, settings.f_max_hz + 2 * resolution, resolution)
         both = np.concatenate([-fine[::-1], fine])
         full = np.concatenate([power[::-1], power])
-        welch = np.empty((bins.size, power.shape[1]))
-        for i, f0 in enumerate(bins):
-            kernel = _hann_kernel(both - f0, settings.segment_s)
-            welch[i] = 0.5 * (kernel @ full) * step * 2.0 if f0 > 0 else 0.0
+        kernel = _hann_kernel(both[None, :] - bins[:, None], settings.segment_s)
+        welch = (kernel @ full) * step
+        welch[bins == 0] = 0.0
         band = _band_average(welch.T, resolution, settings.band_edges_hz())
         return Spectra(settings.frequencies_hz(), self.spec.channels, 0.5 * np.log(band))
 
-    def response(self, geometry: TrackGeometry, speed_m_s: float,
-                 parameters: Mapping[str, float] | None = None,
-                 duration_s: float | None = None, warm_up_s: float | None = None,
-                 time_step_s: float | None = None) -> RigResponse:
+    def response(
+        self,
+        geometry: TrackGeometry,
+        speed_m_s: float,
+        parameters: Mapping[str, float] | None = None,
+        duration_s: float | None = None,
+        warm_up_s: float | None = None,
+        time_step_s: float | None = None,
+    ) -> RigResponse:
         """Sensor signals of the linear model on one track realization (constant speed).
 
         Same time grid, axle inputs and sensor averaging as :class:`~susp_bo.rig.Rig`
@@ -301,7 +363,8 @@ class LinearisedRig:
         dt = sim.time_step_s if time_step_s is None else time_step_s
         system = self._system(parameters, speed_m_s)
         excitation, per_sample = excitation_for_run(
-            system.assembly, geometry, speed_m_s, warm + duration, dt, sim.sample_rate_hz)
+            system.assembly, geometry, speed_m_s, warm + duration, dt, sim.sample_rate_hz
+        )
         inputs = _input_matrix(excitation)
         n_t = inputs.shape[1]
         freqs = scipy.fft.rfftfreq(n_t, dt)
@@ -314,12 +377,21 @@ class LinearisedRig:
         states = np.linalg.solve(lhs, forcing.T[:, :, None])[:, :, 0].T  # (size x F)
         n = system.n_dofs
         q = scipy.fft.irfft(states[:n], n=n_t, axis=1)
-        qdot = scipy.fft.irfft(states[n:2 * n], n=n_t, axis=1)
+        qdot = scipy.fft.irfft(states[n : 2 * n], n=n_t, axis=1)
         start = round(warm / (dt * per_sample)) * per_sample
-        time, signals = sample_decimated(system.assembly, q[:, start::per_sample].T,
-                                         qdot[:, start::per_sample].T, per_sample * dt)
-        return RigResponse(time + start * dt, system.assembly.channels, signals,
-                           sim.sample_rate_hz, self.spec.spectrum)
+        time, signals = sample_decimated(
+            system.assembly,
+            q[:, start::per_sample].T,
+            qdot[:, start::per_sample].T,
+            per_sample * dt,
+        )
+        return RigResponse(
+            time + start * dt,
+            system.assembly.channels,
+            signals,
+            sim.sample_rate_hz,
+            self.spec.spectrum,
+        )
 
 
 def _label(dof_name: str) -> str:
@@ -331,8 +403,11 @@ def _label(dof_name: str) -> str:
 
 def _input_matrix(excitation: AxleExcitation, rates: bool = False) -> FloatArray:
     """Axle inputs in assembly order ``[vertical, cross_level, alignment]`` per axle."""
-    names = (("vertical_rate_m_s", "cross_level_rate_rad_s", "alignment_rate_m_s") if rates
-             else ("vertical_m", "cross_level_rad", "alignment_m"))
+    names = (
+        ("vertical_rate_m_s", "cross_level_rate_rad_s", "alignment_rate_m_s")
+        if rates
+        else ("vertical_m", "cross_level_rad", "alignment_m")
+    )
     arrays = [getattr(excitation, name) for name in names]  # each (n_axles x n_t)
     return np.stack(arrays, axis=1).reshape(-1, excitation.time_s.size)
 
@@ -341,6 +416,7 @@ def _band_average(psd: FloatArray, bin_width_hz: float, edges_hz: FloatArray) ->
     """Mean of a PSD on Welch bins over each band, bins as cells (as spectra.py)."""
     cell_low = (np.arange(psd.shape[-1]) - 0.5) * bin_width_hz
     overlap = np.minimum(edges_hz[1:, None], cell_low[None, :] + bin_width_hz) - np.maximum(
-        edges_hz[:-1, None], cell_low[None, :])
+        edges_hz[:-1, None], cell_low[None, :]
+    )
     weights = np.clip(overlap, 0.0, None) / np.diff(edges_hz)[:, None]
     return psd @ weights.T

@@ -64,6 +64,8 @@ class RigResponse:
     def spectra(self, settings: SpectrumSettings | None = None) -> Spectra:
         """Log-amplitude spectra of every channel (settings default to the rig's)."""
         return log_amplitude_spectra(
-            self.accelerations_m_s2, self.sample_rate_hz, self.channels,
+            self.accelerations_m_s2,
+            self.sample_rate_hz,
+            self.channels,
             settings if settings is not None else self.settings,
         )

@@ -45,8 +45,10 @@ class SensitivityRow:
     frequency_hz: float
 
 
-def sensitivity_table(spec: RigSpec, spectra_of: Callable[[dict[str, float]], Spectra],
-                      ) -> list[SensitivityRow]:
+def sensitivity_table(
+    spec: RigSpec,
+    spectra_of: Callable[[dict[str, float]], Spectra],
+) -> list[SensitivityRow]:
     """Spectral change per parameter and bound.
 
     Args:
@@ -58,22 +60,35 @@ def sensitivity_table(spec: RigSpec, spectra_of: Callable[[dict[str, float]], Sp
     rows = []
     for entry in spec.calibration:
         for bound, value in (("lower", entry.lower), ("upper", entry.upper)):
-            change = DB_PER_NEPER * (spectra_of({entry.name: value}).log_amplitude
-                                     - reference.log_amplitude)
+            change = DB_PER_NEPER * (
+                spectra_of({entry.name: value}).log_amplitude - reference.log_amplitude
+            )
             rms = np.sqrt(np.mean(change**2, axis=1))
             c = int(np.argmax(rms))
             f = int(np.argmax(np.abs(change[c])))
-            rows.append(SensitivityRow(entry.name, bound, value, reference.channels[c],
-                                       float(rms[c]), float(np.abs(change[c, f])),
-                                       float(reference.frequencies_hz[f])))
+            rows.append(
+                SensitivityRow(
+                    entry.name,
+                    bound,
+                    value,
+                    reference.channels[c],
+                    float(rms[c]),
+                    float(np.abs(change[c, f])),
+                    float(reference.frequencies_hz[f]),
+                )
+            )
     return rows
 
 
 def format_sensitivity(rows: list[SensitivityRow]) -> str:
     """The table as fixed-width text."""
-    lines = [f"{'parameter':32s} {'bound':6s} {'value':>10s} {'most affected channel':24s} "
-             f"{'rms dB':>7s} {'max dB':>7s} {'at Hz':>6s}"]
+    lines = [
+        f"{'parameter':32s} {'bound':6s} {'value':>10s} {'most affected channel':24s} "
+        f"{'rms dB':>7s} {'max dB':>7s} {'at Hz':>6s}"
+    ]
     for r in rows:
-        lines.append(f"{r.parameter:32s} {r.bound:6s} {r.value:10.4g} {r.channel:24s} "
-                     f"{r.rms_db:7.2f} {r.max_db:7.2f} {r.frequency_hz:6.2f}")
+        lines.append(
+            f"{r.parameter:32s} {r.bound:6s} {r.value:10.4g} {r.channel:24s} "
+            f"{r.rms_db:7.2f} {r.max_db:7.2f} {r.frequency_hz:6.2f}"
+        )
     return "\n".join(lines)

@@ -22,8 +22,9 @@ from susp_bo.rig.assembly import Assembly
 FloatArray = NDArray[np.float64]
 
 
-def sample_sensors(assembly: Assembly, q: FloatArray, qdot: FloatArray, steps_per_sample: int,
-                   time_step_s: float) -> tuple[FloatArray, FloatArray]:
+def sample_sensors(
+    assembly: Assembly, q: FloatArray, qdot: FloatArray, steps_per_sample: int, time_step_s: float
+) -> tuple[FloatArray, FloatArray]:
     """Sensor signals from coordinates and velocities at the step times.
 
     Args:
@@ -38,12 +39,14 @@ def sample_sensors(assembly: Assembly, q: FloatArray, qdot: FloatArray, steps_pe
         ``(time_s (n_samples,), signals (C x n_samples) m/s²)``, times relative to
         the first row of ``q``.
     """
-    return sample_decimated(assembly, q[::steps_per_sample], qdot[::steps_per_sample],
-                            steps_per_sample * time_step_s)
+    return sample_decimated(
+        assembly, q[::steps_per_sample], qdot[::steps_per_sample], steps_per_sample * time_step_s
+    )
 
 
-def sample_decimated(assembly: Assembly, q: FloatArray, qdot: FloatArray,
-                     sample_interval_s: float) -> tuple[FloatArray, FloatArray]:
+def sample_decimated(
+    assembly: Assembly, q: FloatArray, qdot: FloatArray, sample_interval_s: float
+) -> tuple[FloatArray, FloatArray]:
     """Sensor signals from states taken every ``sample_interval_s`` (s), (n_k x n) each."""
     velocity = qdot @ assembly.sensor_acceleration.T  # (n_k x C) sensor-point velocities
     position = q @ assembly.sensor_displacement.T

@@ -44,9 +44,14 @@ def _speed_profile(speed: SpeedInput, total_s: float) -> SpeedProfile:
     return SpeedProfile.constant(value, total_s)
 
 
-def excitation_for_run(assembly: Assembly, geometry: TrackGeometry, speed: SpeedInput,
-                       total_s: float, time_step_s: float, sample_rate_hz: float,
-                       ) -> tuple[AxleExcitation, int]:
+def excitation_for_run(
+    assembly: Assembly,
+    geometry: TrackGeometry,
+    speed: SpeedInput,
+    total_s: float,
+    time_step_s: float,
+    sample_rate_hz: float,
+) -> tuple[AxleExcitation, int]:
     """Axle inputs at every step time ``0, dt, …, total_s`` and the steps per sample.
 
     Raises:
@@ -64,23 +69,33 @@ def excitation_for_run(assembly: Assembly, geometry: TrackGeometry, speed: Speed
     return axle_excitation(geometry, profile, assembly.axle_positions_m, times), per_sample
 
 
-def synthetic_track(spec: RigSpec, seed: int, speed_m_s: float | None = None,
-                    duration_s: float | None = None, quality: str | None = None,
-                    ) -> TrackGeometry:
+def synthetic_track(
+    spec: RigSpec,
+    seed: int,
+    speed_m_s: float | None = None,
+    duration_s: float | None = None,
+    quality: str | None = None,
+) -> TrackGeometry:
     """A German-PSD track long enough for one default run of ``spec`` (seeded)."""
     sim = spec.simulation
     speed = sim.speed_m_s if speed_m_s is None else speed_m_s
     duration = sim.duration_s if duration_s is None else duration_s
-    span = 2.0 * (spec.parameters["bogie_half_pivot_spacing"]
-                  + spec.parameters["bogie_half_wheelbase"])
+    span = 2.0 * (
+        spec.parameters["bogie_half_pivot_spacing"] + spec.parameters["bogie_half_wheelbase"]
+    )
     length = speed * (sim.warm_up_s + duration) + span + 10.0
-    return TrackGeometry.synthetic(quality=quality or sim.track_quality, length_m=length,
-                                   seed=seed)
+    return TrackGeometry.synthetic(quality=quality or sim.track_quality, length_m=length, seed=seed)
 
 
-def integrate(world: VehicleWorld, forces: ForceModel, excitation: AxleExcitation,
-              speed_m_s: FloatArray, record_every: int, limit: float,
-              names: tuple[str, ...]) -> tuple[FloatArray, FloatArray]:
+def integrate(
+    world: VehicleWorld,
+    forces: ForceModel,
+    excitation: AxleExcitation,
+    speed_m_s: FloatArray,
+    record_every: int,
+    limit: float,
+    names: tuple[str, ...],
+) -> tuple[FloatArray, FloatArray]:
     """Step the world through the excitation; states every ``record_every`` steps.
 
     Args:
@@ -101,9 +116,13 @@ def integrate(world: VehicleWorld, forces: ForceModel, excitation: AxleExcitatio
     n_in = excitation.n_axles * 3
     x_all = np.empty((excitation.time_s.size, n_in))
     xd_all = np.empty_like(x_all)
-    for c, (value, rate) in enumerate((("vertical_m", "vertical_rate_m_s"),
-                                       ("cross_level_rad", "cross_level_rate_rad_s"),
-                                       ("alignment_m", "alignment_rate_m_s"))):
+    for c, (value, rate) in enumerate(
+        (
+            ("vertical_m", "vertical_rate_m_s"),
+            ("cross_level_rad", "cross_level_rate_rad_s"),
+            ("alignment_m", "alignment_rate_m_s"),
+        )
+    ):
         x_all[:, c::3] = getattr(excitation, value).T
         xd_all[:, c::3] = getattr(excitation, rate).T
     n_steps = excitation.time_s.size - 1
@@ -119,8 +138,9 @@ def integrate(world: VehicleWorld, forces: ForceModel, excitation: AxleExcitatio
     q_out = np.empty((records, forces.n))
     qd_out = np.empty((records, forces.n))
     for j in range(n_steps + 1):
-        states = np.array([s[:2] for s in get_states(body, joints, physicsClientId=client)])
-        q, qd = states[:, 0], states[:, 1]
+        states = get_states(body, joints, physicsClientId=client)
+        q = np.array([s[0] for s in states])
+        qd = np.array([s[1] for s in states])
         if j % record_every == 0:
             k = j // record_every
             q_out[k], qd_out[k] = q, qd
@@ -176,9 +196,13 @@ class Rig:
             self._world.close()
             self._world = None
 
-    def simulate(self, geometry: TrackGeometry, speed: SpeedInput | None = None,
-                 parameters: Mapping[str, float] | None = None,
-                 duration_s: float | None = None) -> RigResponse:
+    def simulate(
+        self,
+        geometry: TrackGeometry,
+        speed: SpeedInput | None = None,
+        parameters: Mapping[str, float] | None = None,
+        duration_s: float | None = None,
+    ) -> RigResponse:
         """Run the vehicle over a track and record the sensors.
 
         Args:
@@ -211,20 +235,38 @@ class Rig:
         spec.spectrum.check_sample_rate(sim.sample_rate_hz, duration)
         assembly = build_assembly(spec)
         excitation, per_sample = excitation_for_run(
-            assembly, geometry, speed, total, sim.time_step_s, sim.sample_rate_hz)
+            assembly, geometry, speed, total, sim.time_step_s, sim.sample_rate_hz
+        )
         profile = _speed_profile(speed, total)
         speeds = profile.speed_at(excitation.time_s)
         self._world.build(assembly)
-        q, qd = integrate(self._world, ForceModel(assembly, self.linear_elements), excitation,
-                          speeds, per_sample, sim.max_displacement_m, assembly.dof_names)
+        q, qd = integrate(
+            self._world,
+            ForceModel(assembly, self.linear_elements),
+            excitation,
+            speeds,
+            per_sample,
+            sim.max_displacement_m,
+            assembly.dof_names,
+        )
         start = round(sim.warm_up_s / (sim.time_step_s * per_sample))
-        time, signals = sample_decimated(assembly, q[start:], qd[start:],
-                                         per_sample * sim.time_step_s)
-        return RigResponse(time + start * per_sample * sim.time_step_s, assembly.channels,
-                           signals, sim.sample_rate_hz, spec.spectrum)
+        time, signals = sample_decimated(
+            assembly, q[start:], qd[start:], per_sample * sim.time_step_s
+        )
+        return RigResponse(
+            time + start * per_sample * sim.time_step_s,
+            assembly.channels,
+            signals,
+            sim.sample_rate_hz,
+            spec.spectrum,
+        )
 
-    def spectra(self, geometry: TrackGeometry, speed: SpeedInput | None = None,
-                parameters: Mapping[str, float] | None = None,
-                settings: SpectrumSettings | None = None) -> Spectra:
+    def spectra(
+        self,
+        geometry: TrackGeometry,
+        speed: SpeedInput | None = None,
+        parameters: Mapping[str, float] | None = None,
+        settings: SpectrumSettings | None = None,
+    ) -> Spectra:
         """Log-amplitude spectra of a run (settings default to the rig's)."""
         return self.simulate(geometry, speed, parameters).spectra(settings)

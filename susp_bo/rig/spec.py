@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import sys
+import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -30,11 +30,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.catalog import rig_path
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 if TYPE_CHECKING:
     from susp_bo.rig.spectra import SpectrumSettings
@@ -110,8 +105,7 @@ class CalibrationParameter:
             raise ValueError(f"{where}: lower {self.lower} must be < upper {self.upper}")
         if not self.lower <= self.reference <= self.upper:
             raise ValueError(
-                f"{where}.reference: got {self.reference}; must lie in "
-                f"[{self.lower}, {self.upper}]"
+                f"{where}.reference: got {self.reference}; must lie in [{self.lower}, {self.upper}]"
             )
 
 
@@ -338,12 +332,17 @@ class RigSpec:
             "topology": self.topology,
             "parameters": dict(sorted(self.parameters.items())),
             "sensors": [
-                {"name": s.name, "body": s.body, "position_m": list(s.position_m),
-                 "direction": s.direction}
+                {
+                    "name": s.name,
+                    "body": s.body,
+                    "position_m": list(s.position_m),
+                    "direction": s.direction,
+                }
                 for s in self.sensors
             ],
-            "simulation": {k: getattr(self.simulation, k)
-                           for k in self.simulation.__dataclass_fields__},
+            "simulation": {
+                k: getattr(self.simulation, k) for k in self.simulation.__dataclass_fields__
+            },
             "spectrum": spectrum_dict,
             "calibration": [
                 {"name": c.name, "lower": c.lower, "upper": c.upper, "reference": c.reference}
@@ -370,8 +369,15 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     """
     from susp_bo.rig.spectra import SpectrumSettings
 
-    known = {"rig", "sensors", "simulation", "spectrum", "effects", "calibration",
-             *PARAMETER_SECTIONS}
+    known = {
+        "rig",
+        "sensors",
+        "simulation",
+        "spectrum",
+        "effects",
+        "calibration",
+        *PARAMETER_SECTIONS,
+    }
     unknown = sorted(set(data) - known)
     if unknown:
         raise ValueError(f"{source}: unknown sections {unknown}; allowed {sorted(known)}")

@@ -19,6 +19,8 @@ step with one sub-step; joint torques last one step and are re-applied.
 
 from __future__ import annotations
 
+import contextlib
+
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
@@ -55,8 +57,9 @@ class VehicleWorld:
         c = self.client
         c.resetSimulation()
         c.setGravity(0.0, 0.0, 0.0)
-        c.setPhysicsEngineParameter(fixedTimeStep=self.time_step_s, numSubSteps=1,
-                                    deterministicOverlappingPairs=1)
+        c.setPhysicsEngineParameter(
+            fixedTimeStep=self.time_step_s, numSubSteps=1, deterministicOverlappingPairs=1
+        )
         masses, inertias, parents, types, axes, positions = [], [], [], [], [], []
         for body in assembly.bodies:
             chain = _RIGID_CHAIN if body.kind == "rigid" else _WHEELSET_CHAIN
@@ -75,24 +78,38 @@ class VehicleWorld:
             raise RuntimeError(f"world: {n} joints for {assembly.n_dofs} coordinates")
         identity = (0.0, 0.0, 0.0, 1.0)
         self.body_id = c.createMultiBody(
-            baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
-            basePosition=(0.0, 0.0, 0.0), linkMasses=masses,
-            linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=[-1] * n,
-            linkPositions=positions, linkOrientations=[identity] * n,
+            baseMass=0.0,
+            baseCollisionShapeIndex=-1,
+            baseVisualShapeIndex=-1,
+            basePosition=(0.0, 0.0, 0.0),
+            linkMasses=masses,
+            linkCollisionShapeIndices=[-1] * n,
+            linkVisualShapeIndices=[-1] * n,
+            linkPositions=positions,
+            linkOrientations=[identity] * n,
             linkInertialFramePositions=[(0.0, 0.0, 0.0)] * n,
-            linkInertialFrameOrientations=[identity] * n, linkParentIndices=parents,
-            linkJointTypes=types, linkJointAxis=axes,
+            linkInertialFrameOrientations=[identity] * n,
+            linkParentIndices=parents,
+            linkJointTypes=types,
+            linkJointAxis=axes,
         )
         for link in range(-1, n):
-            c.changeDynamics(self.body_id, link, linearDamping=0.0, angularDamping=0.0,
-                             jointDamping=0.0,
-                             activationState=pybullet.ACTIVATION_STATE_DISABLE_SLEEPING)
+            c.changeDynamics(
+                self.body_id,
+                link,
+                linearDamping=0.0,
+                angularDamping=0.0,
+                jointDamping=0.0,
+                activationState=pybullet.ACTIVATION_STATE_DISABLE_SLEEPING,
+            )
             if link >= 0:
-                c.changeDynamics(self.body_id, link, mass=masses[link],
-                                 localInertiaDiagonal=inertias[link])
+                c.changeDynamics(
+                    self.body_id, link, mass=masses[link], localInertiaDiagonal=inertias[link]
+                )
         self.joints = list(range(n))
-        c.setJointMotorControlArray(self.body_id, self.joints, pybullet.VELOCITY_CONTROL,
-                                    forces=[0.0] * n)
+        c.setJointMotorControlArray(
+            self.body_id, self.joints, pybullet.VELOCITY_CONTROL, forces=[0.0] * n
+        )
 
     def set_state(self, q: list[float], qdot: list[float]) -> None:
         """Reset joint positions and velocities (n,)."""
@@ -102,9 +119,7 @@ class VehicleWorld:
     def close(self) -> None:
         """Disconnect the client (idempotent)."""
         if self.body_id is not None and self.client is not None:
-            try:
+            with contextlib.suppress(pybullet.error):  # already disconnected
                 self.client.disconnect()
-            except pybullet.error:  # already disconnected
-                pass
         self.client = None  # type: ignore[assignment]
         self.body_id = None  # type: ignore[assignment]

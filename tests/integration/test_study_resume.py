@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -99,10 +100,8 @@ def test_kill_9_mid_batch_then_resume_gives_the_same_result(
         os.kill(process.pid, signal.SIGKILL)
         process.wait(timeout=30)
     finally:
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)  # its orphaned pool workers too
-        except ProcessLookupError:
-            pass
     assert process.returncode == -signal.SIGKILL
     before = {key: created for key, _, _, created in _rows(store)}
     assert 5 <= len(before) < 20

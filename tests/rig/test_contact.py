@@ -16,10 +16,14 @@ from susp_bo.rig.world import VehicleWorld
 
 
 def test_single_wheelset_oscillates_at_klingels_wavelength_in_pybullet(
-        reference_spec: RigSpec) -> None:
+    reference_spec: RigSpec,
+) -> None:
     p = reference_spec.parameters
-    expected = klingel_wavelength(p["wheelset_rolling_radius"], p["contact_half_contact_spacing"],
-                                  p["contact_equivalent_conicity"])
+    expected = klingel_wavelength(
+        p["wheelset_rolling_radius"],
+        p["contact_half_contact_spacing"],
+        p["contact_equivalent_conicity"],
+    )
     assembly = free_wheelset_assembly(reference_spec)
     speed, dt, steps = 10.0, 5e-4, 6000
     zeros = np.zeros((1, steps + 1))
@@ -28,8 +32,15 @@ def test_single_wheelset_oscillates_at_klingels_wavelength_in_pybullet(
     try:
         world.build(assembly)
         world.set_state([0.003, 0.0], [0.0, 0.0])
-        q, _ = integrate(world, ForceModel(assembly), excitation, np.full(steps + 1, speed), 1,
-                         0.2, assembly.dof_names)
+        q, _ = integrate(
+            world,
+            ForceModel(assembly),
+            excitation,
+            np.full(steps + 1, speed),
+            1,
+            0.2,
+            assembly.dof_names,
+        )
     finally:
         world.close()
     y = q[:, 0]
@@ -53,27 +64,29 @@ def test_creep_forces_equal_their_linear_matrices(reference_spec: RigSpec, rng) 
     speed = 70.0
     lateral, moment = contact.creep_forces(q, qd, x, xd, speed)
     m = contact.matrices(n, n_in, speed)
-    generalised = (-m["stiffness"] @ q - m["damping"] @ qd + m["input_stiffness"] @ x
-                   + m["input_damping"] @ xd)
+    generalised = (
+        -m["stiffness"] @ q - m["damping"] @ qd + m["input_stiffness"] @ x + m["input_damping"] @ xd
+    )
     np.testing.assert_allclose(generalised[contact.lateral_dof], lateral, rtol=1e-12)
     np.testing.assert_allclose(generalised[contact.yaw_dof], moment, rtol=1e-12)
 
 
 def test_flange_dead_band_only_acts_beyond_the_clearance(reference_spec: RigSpec) -> None:
     assembly = build_assembly(reference_spec)
-    model = ForceModel(assembly)
-    dof = assembly.contact.lateral_dof[0]
+    dead = assembly.dead_bands
+    row = dead.group.names.index("flange_wheelset_1")
+    lateral = assembly.contact.lateral_dof[0]
+    alignment = assembly.contact.alignment_input[0]
+    # the element coordinate is the wheelset's offset from the track centre line
+    assert dead.group.coordinates[row, lateral] == 1.0
+    assert dead.group.inputs[row, alignment] == -1.0
+    assert np.count_nonzero(dead.group.coordinates[row]) == 1
     gap = reference_spec.parameters["contact_flange_gap"]
     stiffness = reference_spec.parameters["contact_flange_stiffness"]
-    n, n_in = assembly.n_dofs, assembly.n_inputs
 
     def flange(offset: float) -> float:
-        q = np.zeros(n)
-        q[dof] = offset
-        model.forces[:] = 0
-        model(q, np.zeros(n), np.zeros(n_in), np.zeros(n_in), 80.0, np.zeros(model.n_strokes))
-        names = assembly.dead_bands.group.names
-        return float(model.forces[model.dead][names.index("flange_wheelset_1")])
+        return float(dead.force(np.full(dead.group.size, offset))[row])
 
-    assert abs(flange(0.5 * gap)) < 1e-3 * stiffness * gap
+    assert abs(flange(0.5 * gap)) < 2e-3 * stiffness * gap  # 0.2 % of a full-stiffness force
     assert flange(gap + 0.005) == pytest.approx(stiffness * 0.005, rel=0.01)
+    assert flange(-gap - 0.005) == pytest.approx(-stiffness * 0.005, rel=0.01)

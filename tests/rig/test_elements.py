@@ -36,6 +36,8 @@ def test_dead_band_is_silent_inside_the_gap_and_stiff_outside() -> None:
     outside = dead_band_force(np.array([0.05, -0.05]), k, gap, smooth)
     np.testing.assert_allclose(outside, [k * 0.03, -k * 0.03], rtol=1e-6)
     h = 1e-7
-    numeric = (dead_band_force(np.array([h]), k, gap, smooth)
-               - dead_band_force(np.array([-h]), k, gap, smooth)) / (2 * h)
+    numeric = (
+        dead_band_force(np.array([h]), k, gap, smooth)
+        - dead_band_force(np.array([-h]), k, gap, smooth)
+    ) / (2 * h)
     np.testing.assert_allclose(numeric, dead_band_slope(k, gap, smooth), rtol=1e-5)

@@ -38,7 +38,8 @@ def test_modal_frequencies_fall_in_the_published_ranges(linear: LinearisedRig) -
 
 
 def test_carbody_bounce_and_bogie_pitch_match_hand_calculations(
-        linear: LinearisedRig, reference_spec: RigSpec) -> None:
+    linear: LinearisedRig, reference_spec: RigSpec
+) -> None:
     p = reference_spec.parameters
     primary = 2 * p["primary_vertical_stiffness"] * 2  # per bogie: 4 axleboxes
     secondary = 2 * p["secondary_vertical_stiffness"]  # per bogie: 2 air springs
@@ -54,7 +55,8 @@ def test_carbody_bounce_and_bogie_pitch_match_hand_calculations(
 
 
 def test_linear_model_is_stable_at_every_corner_of_the_admissible_set(
-        linear: LinearisedRig, reference_spec: RigSpec) -> None:
+    linear: LinearisedRig, reference_spec: RigSpec
+) -> None:
     low, high = reference_spec.calibration_bounds
     worst = -np.inf
     for corner in itertools.product((0, 1), repeat=low.size):
@@ -72,7 +74,8 @@ def test_second_rig_is_stable_and_has_its_own_modes() -> None:
 
 
 def test_bogie_spacing_notches_appear_where_geometry_puts_them(
-        linear: LinearisedRig, reference_spec: RigSpec) -> None:
+    linear: LinearisedRig, reference_spec: RigSpec
+) -> None:
     speed = reference_spec.simulation.speed_m_s
     half_pivot = reference_spec.parameters["bogie_half_pivot_spacing"]
     f = np.linspace(1.0, 13.0, 1200)
@@ -83,16 +86,20 @@ def test_bogie_spacing_notches_appear_where_geometry_puts_them(
     for k in range(3):
         expected = (2 * k + 1) * speed / (4 * half_pivot)
         assert np.min(np.abs(minima - expected)) < 0.02 * expected, (expected, minima)
-        depth = np.log(psd[np.argmin(np.abs(f - expected))] / psd[np.argmin(np.abs(f - 1.2 *
-                                                                                  expected))])
+        depth = np.log(
+            psd[np.argmin(np.abs(f - expected))] / psd[np.argmin(np.abs(f - 1.2 * expected))]
+        )
         assert depth < -2.0  # more than 8.7 dB deep
 
 
-def test_fast_path_spectra_are_finite_and_quick(linear: LinearisedRig,
-                                                reference_spec: RigSpec) -> None:
+def test_fast_path_spectra_are_finite_and_quick(
+    linear: LinearisedRig, reference_spec: RigSpec
+) -> None:
     spectra = linear.spectra()
-    assert spectra.log_amplitude.shape == (len(reference_spec.channels),
-                                           reference_spec.spectrum.n_frequencies)
+    assert spectra.log_amplitude.shape == (
+        len(reference_spec.channels),
+        reference_spec.spectrum.n_frequencies,
+    )
     rougher = linear.spectra(psd=TrackPSD("high"))
     # amplitude scales with sqrt(A_v): high/low roughness = sqrt(1.08e-6/4.032e-7) vertically
     mid = reference_spec.channels.index("carbody_mid_vertical")

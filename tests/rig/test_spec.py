@@ -63,8 +63,9 @@ def test_channels_cover_carbody_and_bogies_vertical_and_lateral(reference_spec: 
         ({"anti_roll_bar_stiffness": 0.5e6}, "outside the admissible interval"),
     ],
 )
-def test_bad_parameter_values_are_rejected(reference_spec: RigSpec, change: dict,
-                                           message: str) -> None:
+def test_bad_parameter_values_are_rejected(
+    reference_spec: RigSpec, change: dict, message: str
+) -> None:
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
         reference_spec.with_parameters(change)
 
@@ -77,8 +78,11 @@ def test_parameters_from_vector_checks_length(reference_spec: RigSpec) -> None:
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.floats(0.0, 1.0), min_size=PAPER_Q, max_size=PAPER_Q),
-       st.integers(0, PAPER_Q - 1), st.floats(1e-6, 1.0))
+@given(
+    st.lists(st.floats(0.0, 1.0), min_size=PAPER_Q, max_size=PAPER_Q),
+    st.integers(0, PAPER_Q - 1),
+    st.floats(1e-6, 1.0),
+)
 def test_admissible_set_is_exactly_the_box(unit: list[float], index: int, excess: float) -> None:
     spec = load_rig_spec("hst_trailer")
     low, high = spec.calibration_bounds
@@ -118,11 +122,15 @@ def test_round_trip_through_a_written_toml_file(tmp_path) -> None:
         (lambda d: d["simulation"].update(sample_rate_hz=300.0), "integer multiple"),
         (lambda d: d["simulation"].update(speed_m_s=0.0), "speed_m_s"),
         (lambda d: d["spectrum"].update(f_min_hz=0.1), "f_min_hz"),
-        (lambda d: d["calibration"]["parameters"][0].update(reference=1.0e6),
-         "differs from the rig value"),
+        (
+            lambda d: d["calibration"]["parameters"][0].update(reference=1.0e6),
+            "differs from the rig value",
+        ),
         (lambda d: d["calibration"]["parameters"][0].update(lower=2e6), "lower"),
-        (lambda d: d["calibration"]["parameters"][1].update(name="nonexistent"),
-         "not a named parameter"),
+        (
+            lambda d: d["calibration"]["parameters"][1].update(name="nonexistent"),
+            "not a named parameter",
+        ),
         (lambda d: d.update(effects={"carbody_bending": {}}), None),
     ],
 )
@@ -132,7 +140,7 @@ def test_invalid_rig_files_fail_with_a_named_field(edit, message) -> None:
     if message is None:  # detected when the vehicle is assembled (before any simulation)
         from susp_bo.rig.assembly import build_assembly
 
-        with pytest.raises(ValueError, match="sensor|effect"):
+        with pytest.raises(ValueError, match=r"sensor|effect"):
             build_assembly(parse_rig(document))
         return
     with pytest.raises(ValueError, match=message):

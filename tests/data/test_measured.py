@@ -1,0 +1,259 @@
+"""Tests of susp_bo.data.measured: the MeasuredRun container, validation and the HDF5 format."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import susp_bo.data.measured as measured
+from susp_bo.data.measured import (
+    MeasuredDataError,
+    MeasuredRun,
+    load_run,
+    load_runs,
+    nan_runs,
+    runs_channels,
+    save_run,
+    validate_run,
+)
+from susp_bo.rig.spectra import SpectrumSettings, log_amplitude_spectra
+from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
+
+# --- the container ------------------------------------------------------------------------
+
+
+def test_run_properties_and_canonical_units(small_run: MeasuredRun) -> None:
+    assert small_run.n_samples == 400 and small_run.duration_s == pytest.approx(4.0)
+    np.testing.assert_allclose(small_run.time_s[:3], [0.0, 0.01, 0.02])
+    assert not small_run.accelerations_m_s2.flags.writeable
+    run = MeasuredRun(
+        small_run.geometry,
+        small_run.speed,
+        ("a", "b"),
+        np.ones((2, 10)),
+        50.0,
+        units=("m/s2", "G"),
+        metadata={"k": np.float64(2.5), "n": np.int64(3), "v": np.arange(2)},
+    )
+    assert run.units == ("m/s^2", "g")
+    assert run.metadata == {"k": 2.5, "n": 3, "v": [0, 1]}
+    assert type(run.metadata["k"]) is float
+
+
+@pytest.mark.parametrize(
+    ("change", "pattern"),
+    [
+        ({"channels": ("a", "a")}, r"channels: duplicate names \['a'\]"),
+        ({"channels": ("a", "")}, r"channels: need one or more non-empty names"),
+        ({"channels": ("a",)}, r"accelerations_m_s2: shape \(2, 400\).*C = 1"),
+        ({"accelerations_m_s2": np.zeros((2, 1))}, r"n_t >= 2"),
+        ({"accelerations_m_s2": np.full((2, 5), np.inf)}, r"channel 'carbody_z' contains inf"),
+        ({"accelerations_m_s2": [["x", "y"], ["z", "w"]]}, r"accelerations_m_s2: not numeric"),
+        ({"sample_rate_hz": -100.0}, r"sample_rate_hz: got -100.0 Hz; must be > 0 Hz"),
+        ({"sample_rate_hz": float("nan")}, r"sample_rate_hz: got nan; must be finite"),
+        ({"sample_rate_hz": "100"}, r"sample_rate_hz: got '100'; expected a real number"),
+        ({"time_offset_s": -1.0}, r"time_offset_s: got -1.0 s; must be >= 0"),
+        ({"units": ("m/s^2",)}, r"units: need one string per channel \(2\)"),
+        ({"metadata": {"f": object()}}, r"metadata: must be JSON-compatible"),
+        ({"geometry": None}, r"geometry: expected a TrackGeometry, got NoneType"),
+        ({"speed": 83.0}, r"speed: expected a SpeedProfile, got float"),
+    ],
+)
+def test_run_validation_names_field_and_value(
+    small_run: MeasuredRun, change: dict[str, object], pattern: str
+) -> None:
+    fields = {
+        "geometry": small_run.geometry,
+        "speed": small_run.speed,
+        "channels": small_run.channels,
+        "accelerations_m_s2": small_run.accelerations_m_s2,
+        "sample_rate_hz": small_run.sample_rate_hz,
+        "units": small_run.units,
+        "metadata": small_run.metadata,
+        **change,
+    }
+    with pytest.raises(MeasuredDataError, match=pattern):
+        MeasuredRun(**fields)  # type: ignore[arg-type]
+
+
+def test_select_to_si_and_spectra(small_run: MeasuredRun) -> None:
+    swapped = small_run.select(["bogie_y", "carbody_z"])
+    np.testing.assert_array_equal(swapped.channel("carbody_z"), small_run.channel("carbody_z"))
+    assert swapped.channels == ("bogie_y", "carbody_z")
+    with pytest.raises(MeasuredDataError, match=r"missing channel\(s\) \['x'\]"):
+        small_run.select(["x"])
+    in_g = MeasuredRun(
+        small_run.geometry, small_run.speed, ("a",), np.full((1, 4), 0.5), 10.0, ("g",)
+    )
+    np.testing.assert_allclose(in_g.to_si().accelerations_m_s2, 0.5 * 9.80665)
+    assert in_g.to_si().units == ("m/s^2",)
+    odd = MeasuredRun(small_run.geometry, small_run.speed, ("a",), np.ones((1, 4)), 10.0, ("V",))
+    with pytest.raises(MeasuredDataError, match=r"cannot convert \[\('a', 'V'\)\]"):
+        odd.to_si()
+    spectrum = SpectrumSettings(f_min_hz=1.0, f_max_hz=20.0, n_frequencies=8, segment_s=2.0)
+    direct = log_amplitude_spectra(
+        small_run.accelerations_m_s2, 100.0, small_run.channels, spectrum
+    )
+    np.testing.assert_array_equal(small_run.spectra(spectrum).log_amplitude, direct.log_amplitude)
+    with pytest.raises(MeasuredDataError, match=r"unit mismatch: 'a' in 'g'"):
+        in_g.spectra(spectrum)
+
+
+@settings(max_examples=60, deadline=None)
+@given(mask=st.lists(st.booleans(), min_size=1, max_size=60))
+def test_nan_runs_reconstruct_the_mask(mask: list[bool]) -> None:
+    values = np.where(mask, np.nan, 1.0)
+    rebuilt = np.zeros(len(mask), dtype=bool)
+    runs = nan_runs(values)
+    for start, length in runs:
+        assert length >= 1
+        rebuilt[start : start + length] = True
+    np.testing.assert_array_equal(rebuilt, mask)
+    # runs are maximal: separated by at least one valid sample
+    assert all(b[0] > a[0] + a[1] for a, b in itertools.pairwise(runs))
+
+
+# --- validate_run ---------------------------------------------------------------------------
+
+
+def test_validate_accepts_a_good_run(small_run: MeasuredRun) -> None:
+    spectrum = SpectrumSettings(f_min_hz=1.0, f_max_hz=20.0, n_frequencies=8, segment_s=2.0)
+    validate_run(small_run, ["carbody_z"], spectrum, axle_span_m=17.5)
+
+
+def test_validate_lists_every_problem(small_run: MeasuredRun) -> None:
+    data = np.array(small_run.accelerations_m_s2)
+    data[0, 100:120] = np.nan
+    data[0, 300] = np.nan
+    broken = MeasuredRun(
+        small_run.geometry,
+        small_run.speed,
+        small_run.channels,
+        data,
+        small_run.sample_rate_hz,
+        units=("m/s^2", "g"),
+    )
+    spectrum = SpectrumSettings(f_min_hz=1.0, f_max_hz=60.0, n_frequencies=8, segment_s=2.0)
+    with pytest.raises(MeasuredDataError) as info:
+        validate_run(
+            broken, ["carbody_z", "bogie_y", "axle_z"], spectrum, axle_span_m=30.0, source="r.h5"
+        )
+    message = str(info.value)
+    assert message.startswith("r.h5: ")
+    assert "missing channel(s) ['axle_z']" in message
+    assert "unit mismatch: 'bogie_y' in 'g'; expected m/s^2" in message
+    assert "'carbody_z' has NaN runs: 2 run(s), 21 samples; longest 0.2 s at t = 1 s" in message
+    assert "Nyquist 50 Hz is not above f_max_hz = 60 Hz" in message
+    assert "track shorter than the run: the geometry covers 100 m" in message
+
+
+def test_validate_record_and_speed_lengths(small_run: MeasuredRun) -> None:
+    spectrum = SpectrumSettings(f_min_hz=0.5, f_max_hz=20.0, n_frequencies=8, segment_s=8.0)
+    with pytest.raises(MeasuredDataError, match=r"duration_s: got 4 s, shorter than one Welch"):
+        validate_run(small_run, settings=spectrum)
+    short_speed = MeasuredRun(
+        small_run.geometry,
+        SpeedProfile.constant(20.0, 2.0),
+        small_run.channels,
+        small_run.accelerations_m_s2,
+        100.0,
+    )
+    with pytest.raises(MeasuredDataError, match=r"speed record too short: it covers 0 … 2 s"):
+        validate_run(short_speed)
+
+
+# --- HDF5 -----------------------------------------------------------------------------------
+
+
+def _assert_same_run(a: MeasuredRun, b: MeasuredRun) -> None:
+    for name in GEOMETRY_COMPONENTS:
+        assert getattr(a.geometry, name).tobytes() == getattr(b.geometry, name).tobytes()
+    assert a.geometry.spacing_m == b.geometry.spacing_m
+    assert a.speed.time_s.tobytes() == b.speed.time_s.tobytes()
+    assert a.speed.speed_m_s.tobytes() == b.speed.speed_m_s.tobytes()
+    assert a.accelerations_m_s2.tobytes() == b.accelerations_m_s2.tobytes()
+    assert (a.channels, a.units, a.sample_rate_hz, a.time_offset_s, a.metadata) == (
+        b.channels,
+        b.units,
+        b.sample_rate_hz,
+        b.time_offset_s,
+        b.metadata,
+    )
+
+
+def test_save_load_round_trip_is_exact(small_run: MeasuredRun, tmp_path: Path) -> None:
+    path = save_run(small_run, tmp_path / "sub" / "run.h5")
+    loaded = load_run(path)
+    _assert_same_run(small_run, loaded)
+    assert loaded.content_digest() == small_run.content_digest()
+    assert [p.name for p in path.parent.iterdir()] == ["run.h5"]  # no temporary left behind
+
+
+def test_file_layout_matches_the_documentation(small_run: MeasuredRun, tmp_path: Path) -> None:
+    path = save_run(small_run, tmp_path / "run.h5")
+    items: list[str] = []
+    with h5py.File(path, "r") as file:
+        file.visit(items.append)
+        assert file.attrs["format"] == "susp_bo.measured_run"
+        assert file.attrs["format_version"] == 1
+        assert file["geometry"].attrs["spacing_m"] == small_run.geometry.spacing_m
+        assert file["geometry/cross_level_rad"].attrs["units"] == "rad"
+        assert file["accelerations/data"].shape == (2, 400)
+        assert list(file["accelerations/channels"].asstr()[()]) == ["carbody_z", "bogie_y"]
+    documentation = measured.__doc__ or ""
+    for item in items:  # every group and dataset written is documented
+        assert item.rsplit("/", 1)[-1] in documentation, item
+    notes = Path("/work/notes/measured_format.md")
+    if notes.exists():  # the README copy of the format says the same
+        assert all(item.rsplit("/", 1)[-1] in notes.read_text() for item in items)
+
+
+def test_load_runs_sorted_and_channel_consistent(tmp_path: Path, run_factory: Callable) -> None:
+    save_run(run_factory(2, ("a", "b")), tmp_path / "run_b.h5")
+    save_run(run_factory(1, ("b", "a")), tmp_path / "run_a.hdf5")
+    (tmp_path / "notes.txt").write_text("not a run")
+    runs = load_runs(tmp_path)
+    assert [r.metadata["seed"] for r in runs] == [1, 2]
+    assert runs_channels(runs) == ("b", "a")
+    np.testing.assert_array_equal(runs[1].channel("a"), run_factory(2, ("a", "b")).channel("a"))
+    assert [r.channels for r in load_runs(tmp_path, channels=["a"])] == [("a",), ("a",)]
+    with pytest.raises(MeasuredDataError, match=r"run_a.hdf5: missing channel\(s\) \['c'\]"):
+        load_runs(tmp_path, channels=["a", "c"])
+    save_run(run_factory(3, ("a", "c")), tmp_path / "run_c.h5")
+    with pytest.raises(MeasuredDataError, match=r"run_c.h5: channel set differs.*\['b'\].*\['c'\]"):
+        load_runs(tmp_path)
+
+
+def test_load_errors_for_missing_places(tmp_path: Path) -> None:
+    with pytest.raises(MeasuredDataError, match=r"holds no measured runs"):
+        load_runs(tmp_path)
+    with pytest.raises(MeasuredDataError, match=r"not a folder"):
+        load_runs(tmp_path / "absent")
+    with pytest.raises(MeasuredDataError, match=r"no such file"):
+        load_run(tmp_path / "absent.h5")
+
+
+def test_nan_dropouts_load_only_when_allowed(small_run: MeasuredRun, tmp_path: Path) -> None:
+    data = np.array(small_run.accelerations_m_s2)
+    data[1, 50:60] = np.nan
+    run = MeasuredRun(small_run.geometry, small_run.speed, small_run.channels, data, 100.0)
+    path = save_run(run, tmp_path / "run.h5")
+    with pytest.raises(MeasuredDataError, match=r"run.h5: channel 'bogie_y' has NaN runs: 1 run"):
+        load_run(path)
+    assert np.isnan(load_run(path, allow_nan=True).channel("bogie_y")[55])
+
+
+def test_geometry_and_speed_survive_variable_speed(tmp_path: Path) -> None:
+    geometry = TrackGeometry(0.5, np.arange(5.0), np.zeros(5), np.zeros(5), np.ones(5))
+    speed = SpeedProfile(np.array([0.0, 0.05, 0.1]), np.array([10.0, 12.0, 11.0]))
+    run = MeasuredRun(geometry, speed, ("x",), np.ones((1, 11)), 100.0, time_offset_s=0.0)
+    loaded = load_run(save_run(run, tmp_path / "r.h5"))
+    _assert_same_run(run, loaded)
+    assert loaded.speed.distance_m(0.1) == pytest.approx(0.05 * 11 + 0.05 * 11.5)

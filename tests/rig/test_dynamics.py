@@ -1,0 +1,58 @@
+"""The fused per-step force model against the element laws and the linearised matrices."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from susp_bo.rig.assembly import build_assembly
+from susp_bo.rig.dynamics import ForceModel
+from susp_bo.rig.linear import state_space
+from susp_bo.rig.spec import RigSpec
+
+
+def _random_state(assembly, rng, scale: float):
+    n, n_in = assembly.n_dofs, assembly.n_inputs
+    return (
+        rng.normal(size=n) * scale,
+        rng.normal(size=n) * 10 * scale,
+        rng.normal(size=n_in) * scale,
+        rng.normal(size=n_in) * 10 * scale,
+        rng.normal(size=assembly.series.group.size) * scale,
+    )
+
+
+def test_linear_force_model_equals_the_state_space_rows(reference_spec: RigSpec, rng) -> None:
+    assembly = build_assembly(reference_spec)
+    speed = 83.33
+    system = state_space(assembly, speed)
+    q, qd, x, xd, stroke = _random_state(assembly, rng, 1e-2)
+    generalised, rate = ForceModel(assembly, linear_elements=True)(q, qd, x, xd, speed, stroke)
+    n = assembly.n_dofs
+    state = np.concatenate([q, qd, stroke])
+    derivative = system.a @ state + system.b @ x + system.b_rate @ xd
+    np.testing.assert_allclose(
+        generalised, assembly.mass_diagonal * derivative[n : 2 * n], rtol=1e-9, atol=1e-6
+    )
+    np.testing.assert_allclose(rate, derivative[2 * n :], rtol=1e-9, atol=1e-12)
+
+
+def test_nonlinear_force_model_equals_the_element_laws(reference_spec: RigSpec, rng) -> None:
+    assembly = build_assembly(reference_spec)
+    speed = 60.0
+    q, qd, x, xd, stroke = _random_state(assembly, rng, 2e-2)  # beyond knees and gaps
+    generalised, rate = ForceModel(assembly)(q, qd, x, xd, speed, stroke)
+    expected = np.zeros(assembly.n_dofs)
+    for elements in (assembly.springs, assembly.dead_bands):
+        g, h = elements.group.coordinates, elements.group.inputs
+        expected -= g.T @ elements.force(g @ q + h @ x)
+    g, h = assembly.dampers.group.coordinates, assembly.dampers.group.inputs
+    expected -= g.T @ assembly.dampers.force(g @ qd + h @ xd)
+    series = assembly.series
+    g, h = series.group.coordinates, series.group.inputs
+    force = series.force(g @ q + h @ x, stroke)
+    expected -= g.T @ force
+    lateral, moment = assembly.contact.creep_forces(q, qd, x, xd, speed)
+    expected[assembly.contact.lateral_dof] += lateral
+    expected[assembly.contact.yaw_dof] += moment
+    np.testing.assert_allclose(generalised, expected, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(rate, series.stroke_rate(force), rtol=1e-12)
