@@ -20,6 +20,7 @@ from susp_bo.data.measured import (
     GEOMETRY_UNITS,
     MeasuredDataError,
     MeasuredRun,
+    _nan_problems,
 )
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
@@ -159,6 +160,10 @@ class _Reader:
             raise self.fail(f"{dataset.name} has shape {dataset.shape}; expected {ndim}-D")
         if unit is not None:
             found = self.text(dataset, "units") if "units" in dataset.attrs else None
+            if found is None:
+                raise self.fail(
+                    f"unit mismatch: {dataset.name} has no 'units' attribute; expected {unit!r}"
+                )
             if found != unit:
                 raise self.fail(f"unit mismatch: {dataset.name} is in {found!r}; expected {unit!r}")
         return np.asarray(dataset[()], dtype=np.float64)
@@ -173,7 +178,7 @@ class _Reader:
         return tuple(str(s) for s in dataset.asstr()[()])
 
 
-def _read(file: h5py.File, where: str) -> MeasuredRun:
+def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
     reader = _Reader(file, where)
     name = reader.text(file, "format") if "format" in file.attrs else None
     if name != FORMAT_NAME:
@@ -222,6 +227,9 @@ def _read(file: h5py.File, where: str) -> MeasuredRun:
         )
     except ValueError as error:  # includes MeasuredDataError
         raise reader.fail(str(error)) from None
+    nan_problems = [] if allow_nan else _nan_problems(run, run.channels)
+    if nan_problems:
+        raise reader.fail("; ".join(nan_problems))
     if "content_sha256" in file.attrs:
         expected = reader.text(file, "content_sha256")
         if run.content_digest() != expected:
@@ -232,14 +240,14 @@ def _read(file: h5py.File, where: str) -> MeasuredRun:
     return run
 
 
-def read_run_file(path: Path) -> MeasuredRun:
+def read_run_file(path: Path, allow_nan: bool = False) -> MeasuredRun:
     """Read one run; every failure becomes :class:`MeasuredDataError` naming ``path``."""
     if not path.is_file():
         raise MeasuredDataError(f"{path}: no such file")
     try:
         _check_seal(path)
         with h5py.File(path, "r") as file:
-            return _read(file, str(path))
+            return _read(file, str(path), allow_nan)
     except MeasuredDataError:
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError, UnicodeError) as error:

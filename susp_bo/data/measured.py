@@ -427,12 +427,7 @@ def load_run(path: str | os.PathLike[str], *, allow_nan: bool = False) -> Measur
     """
     from susp_bo.data._hdf5 import read_run_file
 
-    run = read_run_file(Path(path))
-    if not allow_nan:
-        problems = _nan_problems(run, run.channels)
-        if problems:
-            raise MeasuredDataError(f"{path}: " + "; ".join(problems))
-    return run
+    return read_run_file(Path(path), allow_nan=allow_nan)
 
 
 def load_runs(
