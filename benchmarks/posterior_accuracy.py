@@ -36,7 +36,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from susp_bo.calibration.design import from_unit, to_unit
+from susp_bo.calibration.design import from_unit
 from susp_bo.calibration.loop import CalibrationSettings, calibrate, torch_threads
 from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.calibration.test_functions import TARGETS, AnalyticTarget, marginal_total_variation
@@ -60,7 +60,7 @@ def run_pyvbmc(target: AnalyticTarget, budget: int, seed: int) -> tuple[np.ndarr
     from pyvbmc import VBMC
 
     q = target.dim
-    np.random.seed(seed)  # PyVBMC draws from numpy's global generator
+    np.random.seed(seed)  # noqa: NPY002  (PyVBMC draws from numpy's global generator)
 
     def log_density(u: np.ndarray) -> float:
         return float(target.log_likelihood(from_unit(np.atleast_2d(u), target.bounds))[0])
@@ -88,11 +88,17 @@ def main(argv: list[str] | None = None) -> int:
     """Runs the comparison and prints a table (and writes JSON with --out)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--targets", nargs="+", default=list(TARGETS), choices=list(TARGETS))
-    parser.add_argument("--budget-fractions", nargs="+", type=float, default=[0.25, 0.5, 1.0],
-                        help="budgets as fractions of 50 (q + 2)")
+    parser.add_argument(
+        "--budget-fractions",
+        nargs="+",
+        type=float,
+        default=[0.25, 0.5, 1.0],
+        help="budgets as fractions of 50 (q + 2)",
+    )
     parser.add_argument("--seeds", nargs="+", type=int, default=[0])
-    parser.add_argument("--methods", nargs="+",
-                        default=["susp_bo", "susp_bo-raw", "susp_bo-ego", "pyvbmc", "bolfi"])
+    parser.add_argument(
+        "--methods", nargs="+", default=["susp_bo", "susp_bo-raw", "susp_bo-ego", "pyvbmc", "bolfi"]
+    )
     parser.add_argument("--batch-size", type=int, default=8)
     parser.add_argument("--out", help="write the rows as JSON to this file")
     args = parser.parse_args(argv)
@@ -106,13 +112,16 @@ def main(argv: list[str] | None = None) -> int:
         "bolfi": run_bolfi,
     }
     rows = []
-    print(f"{'target':24s} {'budget':>6s} {'method':12s} {'seed':>4s} {'evals':>5s} "
-          f"{'MMTV':>7s} {'time s':>7s}", flush=True)
+    print(
+        f"{'target':24s} {'budget':>6s} {'method':12s} {'seed':>4s} {'evals':>5s} "
+        f"{'MMTV':>7s} {'time s':>7s}",
+        flush=True,
+    )
     for name in args.targets:
         target = TARGETS[name]()
         full = 50 * (target.dim + 2)
         for frac in args.budget_fractions:
-            budget = max(12, int(round(frac * full)))
+            budget = max(12, round(frac * full))
             for method in args.methods:
                 for seed in args.seeds:
                     t0 = time.perf_counter()
@@ -124,18 +133,30 @@ def main(argv: list[str] | None = None) -> int:
                         break
                     dt = time.perf_counter() - t0
                     tv = marginal_total_variation(target, draws)
-                    row = {"target": name, "budget": budget, "method": method, "seed": seed,
-                           "evaluations": used, "mmtv": float(tv.mean()),
-                           "tv": tv.tolist(), "seconds": dt}
+                    row = {
+                        "target": name,
+                        "budget": budget,
+                        "method": method,
+                        "seed": seed,
+                        "evaluations": used,
+                        "mmtv": float(tv.mean()),
+                        "tv": tv.tolist(),
+                        "seconds": dt,
+                    }
                     rows.append(row)
-                    print(f"{name:24s} {budget:6d} {method:12s} {seed:4d} {used:5d} "
-                          f"{tv.mean():7.4f} {dt:7.1f}", flush=True)
+                    print(
+                        f"{name:24s} {budget:6d} {method:12s} {seed:4d} {used:5d} "
+                        f"{tv.mean():7.4f} {dt:7.1f}",
+                        flush=True,
+                    )
     print("\nMean MMTV over seeds; ratio = MMTV / MMTV(pyvbmc) at the same budget (< 1: better)")
     keys = sorted({(r["target"], r["budget"]) for r in rows})
     for key in keys:
         means = {}
         for method in args.methods:
-            vals = [r["mmtv"] for r in rows if (r["target"], r["budget"], r["method"]) == (*key, method)]
+            vals = [
+                r["mmtv"] for r in rows if (r["target"], r["budget"], r["method"]) == (*key, method)
+            ]
             if vals:
                 means[method] = float(np.mean(vals))
         ref = means.get("pyvbmc", math.nan)

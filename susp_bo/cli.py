@@ -55,6 +55,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     return run_calibrate(args)
 
 
+def _diagnose(args: argparse.Namespace) -> int:
+    from susp_bo.commands.diagnose import run_diagnose
+
+    return run_diagnose(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every command of DESIGN.md."""
     parser = argparse.ArgumentParser(
@@ -117,7 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
     diagnose = sub.add_parser("diagnose", help="model-discrepancy workflow on a calibration result")
     diagnose.add_argument("result_dir")
     diagnose.add_argument("--out", required=True)
-    diagnose.set_defaults(handler=_not_built("diagnose", "issue 4, model discrepancy"))
+    diagnose.set_defaults(handler=_diagnose)
     return parser
 
 

@@ -160,8 +160,9 @@ def joint_map(
 
     def fun(u: np.ndarray) -> tuple[float, np.ndarray]:
         t = torch.tensor(u[None, :], dtype=torch.float64, requires_grad=True)
-        v = -log_density(t)[0]
-        v.backward()
+        with torch.enable_grad():
+            v = -log_density(t)[0]
+            v.backward()
         return v.item(), t.grad.detach().numpy()[0].astype(np.float64)
 
     best_u, best_v = starts[0], float(-values.max())

@@ -341,10 +341,7 @@ def write_figures(study: PreparedStudy, result: CalibrationResult, out: Path) ->
     """The paper's Fig. 1 and Fig. 2 and a pair plot, as PNG files in ``out``."""
     from susp_bo import plots
 
+    units = [next(c.unit for c in study.spec.calibration if c.name == n) for n in study.names]
     return plots.posterior_figures(
-        result.summary,
-        result.samples,
-        study.bounds,
-        out,
-        reference=study.reference,
+        result.summary, result.samples, study.bounds, out, reference=study.reference, units=units
     )

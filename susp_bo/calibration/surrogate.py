@@ -31,7 +31,7 @@ from __future__ import annotations
 import logging
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -40,13 +40,16 @@ from botorch.fit import fit_gpytorch_mll
 from botorch.models import SingleTaskGP
 from botorch.models.transforms.outcome import Standardize
 from botorch.models.utils.gpytorch_modules import get_covar_module_with_dim_scaled_prior
+from gpytorch.constraints import Positive
 from gpytorch.kernels import ScaleKernel
+from gpytorch.means import ConstantMean, Mean
 from gpytorch.mlls import ExactMarginalLogLikelihood
 from gpytorch.priors import GammaPrior
 
 logger = logging.getLogger(__name__)
 
-Transform = Literal["log_deficit", "none"]
+Transform = Literal["auto", "log_deficit", "none"]
+MeanKind = Literal["quadratic", "constant"]
 _SQRT5 = math.sqrt(5.0)
 
 
@@ -55,30 +58,65 @@ class SurrogateSettings:
     """Settings of the kriging surrogate.
 
     Args:
-        transform: output warping, "log_deficit" (default) or "none".
+        transform: output warping: "log_deficit", "none", or "auto" (default: fit both and
+            keep the better leave-one-out predictive density of log L on the best third).
         deficit_scale: s of the log-deficit transform in nats (> 0); None means q.
         noise_variance: fixed observation noise in standardised units (>= 1e-6, GPyTorch's
             floor).
+        mean: GP prior mean, "quadratic" (negative quadratic, :class:`NegativeQuadraticMean`)
+            or "constant".
     """
 
-    transform: Transform = "log_deficit"
+    transform: Transform = "auto"
     deficit_scale: float | None = None
     noise_variance: float = 1e-6
+    mean: MeanKind = "constant"
 
     def __post_init__(self) -> None:
-        if self.transform not in ("log_deficit", "none"):
-            raise ValueError(f"transform: {self.transform!r}, expected 'log_deficit' or 'none'")
+        if self.transform not in ("auto", "log_deficit", "none"):
+            raise ValueError(f"transform: {self.transform!r}, expected auto/log_deficit/none")
         if self.deficit_scale is not None and not self.deficit_scale > 0.0:
             raise ValueError(f"deficit_scale: {self.deficit_scale} must be None or > 0 nats")
+        if self.mean not in ("quadratic", "constant"):
+            raise ValueError(f"mean: {self.mean!r}, expected 'quadratic' or 'constant'")
         if not self.noise_variance >= 1e-6:
             raise ValueError(f"noise_variance: {self.noise_variance} must be >= 1e-6")
+
+
+class NegativeQuadraticMean(Mean):
+    """m(x) = m0 − ½ Σ_k ((x_k − c_k) / ω_k)²: a Gaussian-shaped log-likelihood trend.
+
+    The GP then models departures from a Laplace-like bowl (as in VBMC), which a
+    stationary kernel with a constant mean represents poorly over the dynamic range.
+    """
+
+    def __init__(self, dim: int, centre: torch.Tensor, height: float) -> None:
+        super().__init__()
+        self.register_parameter("constant", torch.nn.Parameter(torch.tensor(float(height))))
+        self.register_parameter("centre", torch.nn.Parameter(centre.clone().reshape(dim)))
+        self.register_parameter("raw_width", torch.nn.Parameter(torch.zeros(dim)))
+        self.register_constraint("raw_width", Positive())
+        self.initialize(width=torch.full((dim,), 0.3, dtype=torch.float64))
+
+    @property
+    def width(self) -> torch.Tensor:
+        """ω (q,), in unit-cube units."""
+        return self.raw_width_constraint.transform(self.raw_width)
+
+    @width.setter
+    def width(self, value: torch.Tensor) -> None:
+        self.initialize(raw_width=self.raw_width_constraint.inverse_transform(value))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(... x n x q) -> (... x n)."""
+        return self.constant - 0.5 * (((x - self.centre) / self.width) ** 2).sum(-1)
 
 
 @dataclass(frozen=True)
 class OutputWarping:
     """The monotone map between log L (y) and the modelled latent value (z)."""
 
-    kind: Transform
+    kind: Literal["log_deficit", "none"]
     y_max: float
     scale: float
 
@@ -99,6 +137,12 @@ class OutputWarping:
         if self.kind == "none":
             return z
         return self.y_max - self.scale * torch.expm1(-z)
+
+    def log_abs_dz_dy(self, y: np.ndarray) -> np.ndarray:
+        """log |dz/dy| at log L values y (Jacobian for densities on the log L scale)."""
+        if self.kind == "none":
+            return np.zeros_like(np.asarray(y, dtype=np.float64))
+        return -np.log(self.scale + self.y_max - np.asarray(y, dtype=np.float64))
 
     def slope(self, z: torch.Tensor) -> torch.Tensor:
         """d log L / dz at z (for delta-method uncertainties)."""
@@ -131,14 +175,20 @@ class Surrogate:
         covar = model.covar_module
         self._inv_ls = (1.0 / covar.base_kernel.lengthscale.detach().reshape(-1)).clone()
         self._outputscale = float(covar.outputscale.detach())
-        self._const = float(model.mean_module.constant.detach())
+        mm = model.mean_module
+        if isinstance(mm, NegativeQuadraticMean):
+            self._quadratic = (mm.centre.detach().clone(), mm.width.detach().clone())
+        else:
+            self._quadratic = None
+        self._mean_constant = float(mm.constant.detach())
         self._y_mean = float(model.outcome_transform.means.detach().reshape(()))
         self._y_std = float(model.outcome_transform.stdvs.detach().reshape(()))
         targets = model.train_targets.detach()
         noise = model.likelihood.noise.detach().reshape(-1)
         kxx = self._kernel(train_x, train_x) + torch.diag(noise.expand(train_x.shape[0]))
         self._chol = torch.linalg.cholesky(kxx)
-        self._alpha = torch.cholesky_solve((targets - self._const)[:, None], self._chol)[:, 0]
+        prior_mean = self._prior_mean(train_x)
+        self._alpha = torch.cholesky_solve((targets - prior_mean)[:, None], self._chol)[:, 0]
         self._xs = train_x * self._inv_ls
         self._xs_sq = (self._xs**2).sum(-1)
 
@@ -154,20 +204,45 @@ class Surrogate:
         r = _SQRT5 * torch.sqrt(d2.clamp_min(1e-30))
         return self._outputscale * (1.0 + r + r**2 / 3.0) * torch.exp(-r)
 
+    def _prior_mean(self, u: torch.Tensor) -> torch.Tensor:
+        if self._quadratic is not None:
+            centre, width = self._quadratic
+            return self._mean_constant - 0.5 * (((u - centre) / width) ** 2).sum(-1)
+        return torch.full(u.shape[:-1], self._mean_constant, dtype=u.dtype)
+
     def _cross(self, u: torch.Tensor) -> torch.Tensor:
         a = u * self._inv_ls
         d2 = (a**2).sum(-1)[:, None] + self._xs_sq[None, :] - 2.0 * a @ self._xs.T
         r = _SQRT5 * torch.sqrt(d2.clamp_min(1e-30))
         return self._outputscale * (1.0 + r + r * r / 3.0) * torch.exp(-r)
 
+    def loo_log_score(self, top_fraction: float = 1.0 / 3.0) -> float:
+        """Mean leave-one-out log predictive density of log L over the best training points.
+
+        Closed form for a GP (hyperparameters kept): with P = (K + N)⁻¹ and α = P (t − m),
+        the LOO mean is t_i − α_i / P_ii and the variance 1 / P_ii (standardised units);
+        mapped to z and then to the log L scale with the Jacobian of the warping.
+        """
+        precision = torch.cholesky_inverse(self._chol)
+        diag = precision.diagonal()
+        targets = self.model.train_targets.detach()
+        loo_mean = (targets - self._alpha / diag) * self._y_std + self._y_mean
+        loo_var = (1.0 / diag) * self._y_std**2
+        z = torch.as_tensor(self.warping.forward(self.train_y), dtype=torch.float64)
+        log_pz = -0.5 * (z - loo_mean) ** 2 / loo_var - 0.5 * torch.log(2 * math.pi * loo_var)
+        log_py = log_pz.numpy() + self.warping.log_abs_dz_dy(self.train_y)
+        k = max(3, math.ceil(top_fraction * self.train_y.size))
+        best = np.argsort(self.train_y)[::-1][:k]
+        return float(np.mean(log_py[best]))
+
     def latent_mean(self, u: torch.Tensor) -> torch.Tensor:
         """Posterior mean of z at unit-cube points u (m x q) -> (m,), fast path."""
-        return (self._const + self._cross(u) @ self._alpha) * self._y_std + self._y_mean
+        return (self._prior_mean(u) + self._cross(u) @ self._alpha) * self._y_std + self._y_mean
 
     def latent_mean_var(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Posterior mean and variance of z at u (m x q) -> ((m,), (m,))."""
         k = self._cross(u)
-        mean = (self._const + k @ self._alpha) * self._y_std + self._y_mean
+        mean = (self._prior_mean(u) + k @ self._alpha) * self._y_std + self._y_mean
         v = torch.linalg.solve_triangular(self._chol, k.T, upper=False)
         var = (self._outputscale - (v**2).sum(0)).clamp_min(1e-12) * self._y_std**2
         return mean, var
@@ -175,7 +250,7 @@ class Surrogate:
     def latent_covariance(self, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Posterior mean (m,) and joint covariance (m x m) of z at u (m x q)."""
         k = self._cross(u)
-        mean = (self._const + k @ self._alpha) * self._y_std + self._y_mean
+        mean = (self._prior_mean(u) + k @ self._alpha) * self._y_std + self._y_mean
         v = torch.linalg.solve_triangular(self._chol, k.T, upper=False)
         cov = (self._kernel(u, u) - v.T @ v) * self._y_std**2
         return mean, cov
@@ -205,6 +280,34 @@ class Surrogate:
 
 
 def fit_surrogate(
+    x_unit: np.ndarray, y: np.ndarray, settings: SurrogateSettings, seed: int
+) -> Surrogate:
+    """Fits the GP to (unit-cube inputs, log L) and returns the surrogate.
+
+    With ``transform="auto"`` both warpings are fitted and the one with the higher
+    :meth:`Surrogate.loo_log_score` is returned.
+
+    Args:
+        x_unit: (n x q) inputs in the unit cube.
+        y: (n,) finite log-likelihood values (impute failures before).
+        settings: surrogate settings.
+        seed: seed of the (rare) random restarts of the hyperparameter fit.
+
+    Returns:
+        The fitted :class:`Surrogate`.
+    """
+    if settings.transform != "auto":
+        return _fit_one(x_unit, y, settings, seed)
+    fits = [
+        _fit_one(x_unit, y, replace(settings, transform=kind), seed)
+        for kind in ("none", "log_deficit")
+    ]
+    scores = [f.loo_log_score() for f in fits]
+    logger.debug("surrogate LOO scores none %.4g, log_deficit %.4g", *scores)
+    return fits[int(np.argmax(scores))]
+
+
+def _fit_one(
     x_unit: np.ndarray, y: np.ndarray, settings: SurrogateSettings, seed: int
 ) -> Surrogate:
     """Fits the GP to (unit-cube inputs, log L) and returns the surrogate.
@@ -240,11 +343,22 @@ def fit_surrogate(
     )
     with torch.random.fork_rng():
         torch.manual_seed(seed)
+        if settings.mean == "quadratic":
+            std_z = (train_z - train_z.mean()) / train_z.std()
+            best = int(torch.argmax(train_z))
+            mean_module: Mean = NegativeQuadraticMean(q, train_x[best], float(std_z.max()))
+        else:
+            mean_module = ConstantMean()
         model = SingleTaskGP(
-            train_x, train_z, train_var, covar_module=covar, outcome_transform=Standardize(m=1)
+            train_x,
+            train_z,
+            train_var,
+            covar_module=covar,
+            mean_module=mean_module,
+            outcome_transform=Standardize(m=1),
         )
         mll = ExactMarginalLogLikelihood(model.likelihood, model)
-        with warnings.catch_warnings(record=True) as caught:
+        with torch.enable_grad(), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             fit_gpytorch_mll(mll)
     for w in caught:

@@ -9,6 +9,8 @@ from susp_bo.cli import UsageError
 from susp_bo.commands._common import output_folder, read_parameter_file, write_json
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
+from susp_bo.discrepancy.effects import with_effect
+from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.spec import load_rig_spec
 
 
@@ -34,17 +36,21 @@ def parse_effect(text: str) -> tuple[str, dict[str, float]]:
 
 
 def run_synth(args: argparse.Namespace) -> int:
-    """Write ``run_000.h5`` … ``run_{nu-1}.h5`` and ``truth.json`` into ``--out``."""
+    """Write ``run_000.h5`` … ``run_{nu-1}.h5`` and ``truth.json`` into ``--out``.
+
+    ``--effect NAME[:k=v,...]`` switches a library effect on in the generator
+    (:mod:`susp_bo.discrepancy.effects`); ``truth.json`` lists the effects with
+    their values, the run metadata names them.
+    """
     effects = [parse_effect(text) for text in args.effect]
-    if effects:
-        raise UsageError(
-            f"--effect {effects[0][0]!r}: the library of candidate effects is not built yet "
-            "(issue 4, model discrepancy); no data were written"
-        )
     try:
         spec = load_rig_spec(args.rig)
         truth = read_parameter_file(args.truth) if args.truth else {}
         spec.with_parameters(truth)
+        for name, values in effects:  # the hidden physics: on in the generator only
+            spec = with_effect(spec, name, values)
+        if effects:
+            build_assembly(spec.with_parameters(truth))  # effect values checked before any run
     except (FileNotFoundError, ValueError) as error:
         raise UsageError(str(error)) from error
     if args.nu < 1:
@@ -68,7 +74,13 @@ def run_synth(args: argparse.Namespace) -> int:
             "seed": args.seed,
             "nu": args.nu,
             "noise_m_s2": args.noise,
-            "effects": [],
+            "effects": [
+                {
+                    "name": name,
+                    "values": {k: v for k, v in spec.effects[name].items() if k != "enabled"},
+                }
+                for name, _ in effects
+            ],
         },
     )
     print(f"susp-bo synth: wrote {len(runs)} runs to {out}", file=sys.stderr)

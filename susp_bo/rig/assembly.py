@@ -16,7 +16,8 @@ Both the PyBullet world and the linearised model are built from the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,6 +30,10 @@ FloatArray = NDArray[np.float64]
 GRAVITY_M_S2 = 9.81
 RIGID_DOFS = ("y", "z", "roll", "pitch", "yaw")
 WHEELSET_DOFS = ("y", "yaw")
+MODAL_DOFS = ("eta",)
+DOFS_OF_KIND = {"rigid": RIGID_DOFS, "wheelset": WHEELSET_DOFS, "modal": MODAL_DOFS}
+PointTerm = Callable[[str, tuple[float, float, float], str], dict[int, float]]
+"""``term(body, location, axis) -> {dof index: coefficient}``: extra kinematics of body points."""
 INPUTS_PER_AXLE = ("vertical", "cross_level", "alignment")
 
 _REQUIRED = {
@@ -99,8 +104,10 @@ class Body:
     """A body of the vehicle.
 
     Args:
-        name: e.g. ``carbody``, ``bogie_front``, ``wheelset_1``.
-        kind: ``rigid`` (5 coordinates) or ``wheelset`` (lateral and yaw).
+        name: e.g. ``carbody``, ``bogie_front``, ``wheelset_1``, ``carbody_bending``.
+        kind: ``rigid`` (5 coordinates), ``wheelset`` (lateral and yaw) or ``modal``
+            (one elastic modal coordinate ``eta`` of generalised mass ``mass``; added
+            by effects such as carbody bending).
         cg_m: nominal centre of gravity (x, y, z) in vehicle coordinates, m.
         mass: kg.
         inertia: principal moments (roll, pitch, yaw), kg·m².
@@ -113,6 +120,51 @@ class Body:
     mass: float
     inertia: tuple[float, float, float]
     dofs: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class PeriodicInputs:
+    """Deterministic periodic inputs ``x_i(t) += A cos(k s(t) + φ)`` (wheel out-of-roundness).
+
+    Attributes:
+        input_index: index i in the track-input vector x (m,).
+        amplitude: A (m or rad) (m,).
+        wavenumber_rad_m: k, rad per metre travelled (m,); frequency ``k V / 2π`` Hz.
+        phase_rad: φ (m,).
+    """
+
+    input_index: NDArray[np.intp]
+    amplitude: FloatArray
+    wavenumber_rad_m: FloatArray
+    phase_rad: FloatArray
+
+    @staticmethod
+    def empty() -> PeriodicInputs:
+        """No periodic inputs."""
+        return PeriodicInputs(np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0), np.zeros(0))
+
+    @property
+    def size(self) -> int:
+        """Number of periodic inputs m."""
+        return int(self.amplitude.size)
+
+    def values(self, distance_m: FloatArray, n_inputs: int) -> FloatArray:
+        """Input additions (n_inputs x n_t) at travelled distances ``distance_m`` (n_t,) m."""
+        out = np.zeros((n_inputs, np.size(distance_m)))
+        for i, a, k, phi in zip(
+            self.input_index, self.amplitude, self.wavenumber_rad_m, self.phase_rad
+        ):
+            out[i] += a * np.cos(k * distance_m + phi)
+        return out
+
+    def rates(self, distance_m: FloatArray, speed_m_s: FloatArray, n_inputs: int) -> FloatArray:
+        """Time derivatives of :meth:`values` (n_inputs x n_t), at speeds (n_t,) m/s."""
+        out = np.zeros((n_inputs, np.size(distance_m)))
+        for i, a, k, phi in zip(
+            self.input_index, self.amplitude, self.wavenumber_rad_m, self.phase_rad
+        ):
+            out[i] -= a * k * speed_m_s * np.sin(k * distance_m + phi)
+        return out
 
 
 @dataclass(frozen=True)
@@ -129,6 +181,9 @@ class Assembly:
         sensor_acceleration: sensor rows on q̈ (C x n).
         sensor_displacement: sensor rows on q (gravity pick-up, C x n), m/s² per unit.
         channels: sensor names (C,).
+        periodic_inputs: deterministic inputs added to the track inputs (e.g. wheel
+            out-of-roundness): ``x_i += A cos(k s(t) + φ)`` with ``s`` the travelled
+            distance (m).
     """
 
     bodies: tuple[Body, ...]
@@ -143,6 +198,7 @@ class Assembly:
     sensor_acceleration: FloatArray
     sensor_displacement: FloatArray
     channels: tuple[str, ...]
+    periodic_inputs: PeriodicInputs = field(default_factory=lambda: PeriodicInputs.empty())
 
     @property
     def n_dofs(self) -> int:
@@ -171,6 +227,56 @@ class _Builder:
         self.n_inputs = n_inputs
         self.axle_of: dict[str, int] = {}
         self.rows: dict[str, list[tuple[str, FloatArray, FloatArray, dict[str, float]]]] = {}
+        # (kind, row index) -> (lower, upper, location, axis) for rows built by add()
+        self.placement: dict[tuple[str, int], tuple[str, str, tuple[float, float, float], str]] = {}
+        self.point_terms: list[PointTerm] = []
+        self.periodic: list[tuple[int, float, float, float]] = []
+
+    def add_body(self, body: Body) -> int:
+        """Append a body (its ``dofs`` are assigned here); returns its first coordinate index.
+
+        Every existing element row is padded with zeros for the new coordinates.
+        """
+        if body.name in self.bodies:
+            raise ValueError(f"body {body.name!r} already exists")
+        count = len(DOFS_OF_KIND[body.kind])
+        first = self.n
+        self.bodies[body.name] = Body(
+            body.name,
+            body.kind,
+            body.cg_m,
+            body.mass,
+            body.inertia,
+            tuple(range(first, first + count)),
+        )
+        self.n += count
+        for kind, rows in self.rows.items():
+            self.rows[kind] = [
+                (name, np.concatenate([g, np.zeros(count)]), h, params)
+                for name, g, h, params in rows
+            ]
+        return first
+
+    def add_point_term(self, term: PointTerm) -> None:
+        """Register extra kinematics of body points and re-derive every placed element."""
+        self.point_terms.append(term)
+        for (kind, index), (lower, upper, location, axis) in self.placement.items():
+            name, _, _, params = self.rows[kind][index]
+            g_up, h_up = self.point_rows(upper, location, axis)
+            g_lo, h_lo = self.point_rows(lower, location, axis)
+            self.rows[kind][index] = (name, g_up - g_lo, h_up - h_lo, params)
+
+    def add_periodic_input(
+        self, input_index: int, amplitude: float, wavenumber_rad_m: float, phase_rad: float
+    ) -> None:
+        """A deterministic input ``x_i += A cos(k s + φ)`` (see :class:`PeriodicInputs`)."""
+        self.periodic.append(
+            (int(input_index), float(amplitude), float(wavenumber_rad_m), float(phase_rad))
+        )
+
+    def element_params(self, kind: str, prefix: str) -> list[dict[str, float]]:
+        """The (mutable) parameter dicts of the rows of ``kind`` whose name starts with prefix."""
+        return [row[3] for row in self.rows.get(kind, []) if row[0].startswith(prefix)]
 
     def point_rows(
         self, body_name: str, location: tuple[float, float, float], axis: str
@@ -189,6 +295,11 @@ class _Builder:
             }[axis]
             for index, value in coefficients.items():
                 g[index] += value
+            for term in self.point_terms:
+                for index, value in term(body_name, location, axis).items():
+                    g[index] += value
+        elif body.kind == "modal":
+            raise ValueError(f"body {body_name!r} is a modal coordinate; it has no points")
         else:
             y, yaw = body.dofs
             axle = self.axle_of[body_name]
@@ -217,7 +328,9 @@ class _Builder:
         """An element between ``lower`` and ``upper`` at ``location`` along world ``axis``."""
         g_up, h_up = self.point_rows(upper, location, axis)
         g_lo, h_lo = self.point_rows(lower, location, axis)
-        self.rows.setdefault(kind, []).append((name, g_up - g_lo, h_up - h_lo, params))
+        rows = self.rows.setdefault(kind, [])
+        self.placement[kind, len(rows)] = (lower, upper, location, axis)
+        rows.append((name, g_up - g_lo, h_up - h_lo, params))
 
     def add_rows(self, kind: str, name: str, g: FloatArray, h: FloatArray, **params: float) -> None:
         """An element with explicit kinematic rows."""
@@ -421,7 +534,7 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
             smoothing=p["contact_flange_smoothing"],
         )
     apply_effects(spec, builder)  # extension point: optional physical effects
-    return _finish(builder, bodies, axles, p, spec)
+    return _finish(builder, list(builder.bodies.values()), axles, p, spec)
 
 
 def _finish(
@@ -455,16 +568,25 @@ def _finish(
         acceleration[row], _ = builder.point_rows(sensor.body, sensor.position_m, axis)
         if axis == "y":  # specific force in the body frame: gravity picked up through roll
             displacement[row, builder.bodies[sensor.body].dofs[2]] = GRAVITY_M_S2
-    names = tuple(
-        f"{b.name}.{d}"
-        for b in bodies
-        for d in (RIGID_DOFS if b.kind == "rigid" else WHEELSET_DOFS)
-    )
+    names = tuple(f"{b.name}.{d}" for b in bodies for d in DOFS_OF_KIND[b.kind])
     mass = np.concatenate(
         [
-            [b.mass, b.mass, *b.inertia] if b.kind == "rigid" else [b.mass, b.inertia[2]]
+            [b.mass, b.mass, *b.inertia]
+            if b.kind == "rigid"
+            else ([b.mass, b.inertia[2]] if b.kind == "wheelset" else [b.mass])
             for b in bodies
         ]
+    )
+    periodic = builder.periodic
+    periodic_inputs = (
+        PeriodicInputs(
+            np.array([e[0] for e in periodic], dtype=np.intp),
+            np.array([e[1] for e in periodic]),
+            np.array([e[2] for e in periodic]),
+            np.array([e[3] for e in periodic]),
+        )
+        if periodic
+        else PeriodicInputs.empty()
     )
     return Assembly(
         bodies=tuple(bodies),
@@ -495,6 +617,7 @@ def _finish(
         sensor_acceleration=acceleration,
         sensor_displacement=displacement,
         channels=tuple(s.name for s in sensors),
+        periodic_inputs=periodic_inputs,
     )
 
 

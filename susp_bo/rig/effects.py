@@ -4,14 +4,18 @@ A rig file may carry ``[effects.<name>]`` tables (parsed into ``RigSpec.effects`
 Each name must be registered here with a function that adds its elements or
 coordinates to the assembly builder; both the PyBullet world and the linearised
 model are built from that assembly, so an effect is added once and appears in
-both. No effects are registered yet (a later issue adds them); an unknown effect
-name is an error before any simulation runs.
+both. The library of candidate effects lives in :mod:`susp_bo.discrepancy.effects`
+and registers itself here; it is imported lazily the first time an effect name
+is looked up. An unknown effect name is an error before any simulation runs.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from typing import Any
+
+LIBRARY_MODULE = "susp_bo.discrepancy.effects"
 
 EffectHook = Callable[[Any, Any, dict[str, Any]], None]
 """``hook(spec, builder, options)``: mutate the assembly builder for one effect."""
@@ -31,8 +35,14 @@ def register_effect(name: str) -> Callable[[EffectHook], EffectHook]:
     return decorate
 
 
+def _load_library() -> None:
+    """Import the library of candidate effects (it registers its hooks on import)."""
+    importlib.import_module(LIBRARY_MODULE)
+
+
 def available_effects() -> tuple[str, ...]:
-    """Names of the registered effects, sorted."""
+    """Names of the registered effects (the library included), sorted."""
+    _load_library()
     return tuple(sorted(_REGISTRY))
 
 
@@ -45,6 +55,8 @@ def apply_effects(spec: Any, builder: Any) -> None:
     for name, options in getattr(spec, "effects", {}).items():
         if not options.get("enabled", True):
             continue
+        if name not in _REGISTRY:
+            _load_library()
         if name not in _REGISTRY:
             raise ValueError(
                 f"rig effect {name!r}: not available; registered effects: "

@@ -13,6 +13,7 @@ band vs Nyquist and record length); a run that diverges raises
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from pathlib import Path
@@ -66,7 +67,22 @@ def excitation_for_run(
     per_sample = round(1.0 / (time_step_s * sample_rate_hz))
     n_steps -= n_steps % per_sample
     times = np.arange(n_steps + 1) * time_step_s
-    return axle_excitation(geometry, profile, assembly.axle_positions_m, times), per_sample
+    excitation = axle_excitation(geometry, profile, assembly.axle_positions_m, times)
+    periodic = assembly.periodic_inputs
+    if periodic.size:  # deterministic inputs (wheel out-of-roundness) on the vertical inputs
+        n_axles = excitation.n_axles
+        n_in = 3 * n_axles
+        distance = profile.distance_m(times)
+        values = periodic.values(distance, n_in).reshape(n_axles, 3, -1)
+        rates = periodic.rates(distance, profile.speed_at(times), n_in).reshape(n_axles, 3, -1)
+        if np.any(values[:, 1:]):
+            raise ValueError("periodic inputs: only vertical axle inputs are supported")
+        excitation = dataclasses.replace(
+            excitation,
+            vertical_m=excitation.vertical_m + values[:, 0],
+            vertical_rate_m_s=excitation.vertical_rate_m_s + rates[:, 0],
+        )
+    return excitation, per_sample
 
 
 def synthetic_track(

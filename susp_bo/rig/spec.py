@@ -8,7 +8,9 @@ A rig file has engineer-readable sections (``[carbody]``, ``[bogie]``,
 citation), ``[[sensors]]``, ``[simulation]``, ``[spectrum]``, ``[effects]``
 (optional physical effects, parsed but interpreted by the effect registry) and
 ``[[calibration.parameters]]`` (the admissible set C_w: name, lower, upper,
-reference, unit, description).
+reference, unit, description). The numbers of an effect table ``[effects.<name>]``
+are named parameters too, ``<name>_<key>`` (e.g. ``carbody_bending_frequency_hz``),
+so effect parameters can be calibrated like any other.
 
 Every check runs when the spec is built, so bad input fails before any
 simulation: unknown names, non-finite values, non-positive masses/inertias,
@@ -388,6 +390,13 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     for section in PARAMETER_SECTIONS:
         for key, value in data.get(section, {}).items():
             parameters[f"{section}_{key}"] = _number(f"{source}: [{section}] {key}", value)
+    for effect, table in data.get("effects", {}).items():
+        # effect parameters are named parameters "<effect>_<key>" (calibratable like any other)
+        for key, value in dict(table).items():
+            if key != "enabled" and isinstance(value, int | float) and not isinstance(value, bool):
+                parameters[f"{effect}_{key}"] = _number(
+                    f"{source}: [effects.{effect}] {key}", value
+                )
     sensors = []
     for entry in data.get("sensors", []):
         try:

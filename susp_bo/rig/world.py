@@ -6,8 +6,10 @@ coordinates are joints of the multibody: carbody and bogie frames hang on a
 chain ``prismatic y → prismatic z → revolute roll (x) → pitch (y) → yaw (z)``
 through massless links, the wheelsets on ``prismatic y → revolute yaw``; the
 last link of a chain carries the body's mass and principal inertia at its
-centre of gravity. The joint coordinates are then exactly the generalised
-coordinates ``q`` of the assembly, read with one ``getJointStates`` call and
+centre of gravity. Elastic modal coordinates added by effects (carbody bending)
+are one prismatic joint each carrying the generalised mass. The joint
+coordinates are then exactly the generalised coordinates ``q`` of the
+assembly, read with one ``getJointStates`` call and
 driven with one ``setJointMotorControlArray(TORQUE_CONTROL)`` call per step.
 
 PyBullet settings (DESIGN.md pitfalls): one DIRECT client per world, gravity
@@ -37,6 +39,10 @@ _WHEELSET_CHAIN = (
     (pybullet.JOINT_PRISMATIC, (0.0, 1.0, 0.0)),
     (pybullet.JOINT_REVOLUTE, (0.0, 0.0, 1.0)),
 )
+# an elastic modal coordinate (e.g. carbody bending): one prismatic joint carrying the
+# generalised mass; its coupling to the vehicle is entirely in the element rows.
+_MODAL_CHAIN = ((pybullet.JOINT_PRISMATIC, (0.0, 0.0, 1.0)),)
+_CHAINS = {"rigid": _RIGID_CHAIN, "wheelset": _WHEELSET_CHAIN, "modal": _MODAL_CHAIN}
 
 
 class VehicleWorld:
@@ -62,7 +68,7 @@ class VehicleWorld:
         )
         masses, inertias, parents, types, axes, positions = [], [], [], [], [], []
         for body in assembly.bodies:
-            chain = _RIGID_CHAIN if body.kind == "rigid" else _WHEELSET_CHAIN
+            chain = _CHAINS[body.kind]
             parent = 0  # the base (moving frame)
             for i, (joint_type, axis) in enumerate(chain):
                 last = i == len(chain) - 1

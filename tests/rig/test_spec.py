@@ -131,7 +131,7 @@ def test_round_trip_through_a_written_toml_file(tmp_path) -> None:
             lambda d: d["calibration"]["parameters"][1].update(name="nonexistent"),
             "not a named parameter",
         ),
-        (lambda d: d.update(effects={"carbody_bending": {}}), None),
+        (lambda d: d.update(effects={"no_such_effect": {}}), None),
     ],
 )
 def test_invalid_rig_files_fail_with_a_named_field(edit, message) -> None:

@@ -1,0 +1,168 @@
+"""What the discrepancy workflow works on: measured spectra, their tracks, a rig, a simulator.
+
+A :class:`DiagnosisProblem` pairs every measured run ``y_i`` with the track it
+was measured on ``x_i`` (μ = ν, as in a study), so that simulated and measured
+spectra are compared run by run. Two simulators give ``h(x_i, w)``:
+
+* :class:`LinearSimulator` — the linearised rig's time response on the measured
+  track (:meth:`~susp_bo.rig.linear.LinearisedRig.response`, one FFT solve,
+  ≈10 ms a run at the sample rate): the fast path for refits;
+* :class:`PyBulletSimulator` — the PyBullet rig (what a study calibrates with).
+
+A known sensor noise floor (white, ``noise_m_s2`` rms) is added to every
+simulated spectrum, so that a quiet band of the data is not read as missing
+physics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from susp_bo.calibration.evaluation import TrackRun, simulate_spectra
+from susp_bo.calibration.likelihood import OutputError
+from susp_bo.rig.linear import LinearisedRig
+from susp_bo.rig.spec import RigSpec
+
+FloatArray = np.ndarray
+
+
+class Simulator(Protocol):
+    """``h(x, w)``: log-amplitude spectra (C x F) of a rig on one track."""
+
+    name: str
+
+    def spectra(
+        self, spec: RigSpec, parameters: Mapping[str, float], track: TrackRun
+    ) -> FloatArray: ...
+
+
+class LinearSimulator:
+    """The linearised rig on the measured track, at the output sample rate (fast path)."""
+
+    name = "linear"
+
+    def __init__(self) -> None:
+        self._rigs: dict[str, tuple[RigSpec, LinearisedRig]] = {}
+
+    def _rig(self, spec: RigSpec) -> LinearisedRig:
+        key = spec.fingerprint()
+        if key not in self._rigs:
+            self._rigs[key] = (spec, LinearisedRig(spec))
+        return self._rigs[key][1]
+
+    def spectra(
+        self, spec: RigSpec, parameters: Mapping[str, float], track: TrackRun
+    ) -> FloatArray:
+        """Spectra (C x F) of ``spec`` at ``parameters`` on ``track`` (constant mean speed)."""
+        sim = spec.simulation
+        speed = float(np.mean(track.speed.speed_at(np.linspace(0, track.speed.duration_s, 64))))
+        response = self._rig(spec).response(
+            track.geometry,
+            speed,
+            dict(parameters),
+            duration_s=track.speed.duration_s - sim.warm_up_s,
+            time_step_s=1.0 / sim.sample_rate_hz,
+        )
+        return np.asarray(response.spectra(spec.spectrum).log_amplitude, dtype=np.float64)
+
+
+class PyBulletSimulator:
+    """The PyBullet rig (the study's simulator), one client per thread."""
+
+    name = "pybullet"
+
+    def spectra(
+        self, spec: RigSpec, parameters: Mapping[str, float], track: TrackRun
+    ) -> FloatArray:
+        """Spectra (C x F) of ``spec`` at ``parameters`` on ``track``."""
+        return simulate_spectra(spec, parameters, track.geometry, track.speed)
+
+
+def make_simulator(kind: str) -> Simulator:
+    """``linear`` or ``pybullet``."""
+    if kind == "linear":
+        return LinearSimulator()
+    if kind == "pybullet":
+        return PyBulletSimulator()
+    raise ValueError(f"simulator: got {kind!r}; allowed 'linear', 'pybullet'")
+
+
+def add_noise_floor(
+    log_amplitude: FloatArray, noise_m_s2: float, sample_rate_hz: float
+) -> FloatArray:
+    """Spectra with white sensor noise of ``noise_m_s2`` rms added (PSD ``2 σ² / fs``)."""
+    if noise_m_s2 <= 0.0:
+        return log_amplitude
+    floor = 2.0 * noise_m_s2**2 / sample_rate_hz
+    return 0.5 * np.log(np.exp(2.0 * log_amplitude) + floor)
+
+
+@dataclass(frozen=True)
+class DiagnosisProblem:
+    """Measured data, their tracks and the model being checked.
+
+    Attributes:
+        spec: the rig being calibrated (the base model, effects off).
+        names: calibrated parameter names (q,).
+        bounds: (2 x q) admissible set.
+        measured: (ν x C x F) measured log-amplitude spectra.
+        tracks: the ν tracks, ``tracks[i]`` is where ``measured[i]`` was taken.
+        error: the output error B (σ_B per channel).
+        noise_m_s2: known sensor noise (m/s² rms), 0 when negligible or unknown.
+        reference: true parameter values by name when the data are synthetic, else None.
+    """
+
+    spec: RigSpec
+    names: tuple[str, ...]
+    bounds: FloatArray
+    measured: FloatArray
+    tracks: tuple[TrackRun, ...]
+    error: OutputError
+    noise_m_s2: float = 0.0
+    reference: Mapping[str, float] | None = None
+
+    def __post_init__(self) -> None:
+        measured = np.asarray(self.measured, dtype=np.float64)
+        if measured.ndim != 3 or measured.shape[0] != len(self.tracks):
+            raise ValueError(
+                f"measured: shape {measured.shape}; expected (ν x C x F) with ν = "
+                f"{len(self.tracks)} tracks"
+            )
+        if measured.shape[1] != len(self.spec.channels):
+            raise ValueError(
+                f"measured: {measured.shape[1]} channels, the rig has {len(self.spec.channels)}"
+            )
+        bounds = np.asarray(self.bounds, dtype=np.float64)
+        if bounds.shape != (2, len(self.names)):
+            raise ValueError(f"bounds: shape {bounds.shape}; expected (2 x {len(self.names)})")
+        if self.noise_m_s2 < 0:
+            raise ValueError(f"noise_m_s2: got {self.noise_m_s2}; must be >= 0 m/s²")
+        object.__setattr__(self, "measured", measured)
+        object.__setattr__(self, "bounds", bounds)
+        object.__setattr__(self, "names", tuple(self.names))
+
+    @property
+    def frequencies_hz(self) -> FloatArray:
+        """(F,) the frequency grid."""
+        return self.spec.spectrum.frequencies_hz()
+
+    @property
+    def sigma(self) -> FloatArray:
+        """(C,) σ_B per channel."""
+        return np.asarray(self.error.sigma, dtype=np.float64)
+
+    def simulate(
+        self,
+        simulator: Simulator,
+        spec: RigSpec,
+        names: Sequence[str],
+        w: FloatArray,
+    ) -> FloatArray:
+        """``h(x_i, w)`` on every track, noise floor included: (ν x C x F)."""
+        parameters = dict(zip(names, (float(v) for v in w)))
+        out = np.stack([simulator.spectra(spec, parameters, track) for track in self.tracks])
+        return add_noise_floor(out, self.noise_m_s2, spec.simulation.sample_rate_hz)

@@ -1,0 +1,111 @@
+"""Kriging surrogate: the fast predictor is the GP, warping and LOO are exact."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from susp_bo.calibration.design import space_filling_design, to_unit
+from susp_bo.calibration.surrogate import (
+    OutputWarping,
+    SurrogateSettings,
+    fit_surrogate,
+)
+from susp_bo.calibration.test_functions import correlated_gaussian_7d
+
+TARGET = correlated_gaussian_7d()
+
+
+@pytest.fixture(scope="module")
+def data() -> tuple[np.ndarray, np.ndarray]:
+    x = space_filling_design(60, TARGET.bounds, seed=0)
+    return to_unit(x, TARGET.bounds), TARGET(x)
+
+
+@pytest.mark.parametrize("transform", ["none", "log_deficit"])
+@pytest.mark.parametrize("mean", ["constant", "quadratic"])
+def test_fast_predictor_equals_gpytorch_posterior(data, transform: str, mean: str) -> None:
+    x, y = data
+    s = fit_surrogate(x, y, SurrogateSettings(transform=transform, mean=mean), seed=0)
+    u = torch.rand(40, 7, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
+    with torch.no_grad():
+        post = s.model.posterior(u)
+    mean_z, var_z = s.latent_mean_var(u)
+    scale = float(post.mean.abs().max())
+    torch.testing.assert_close(mean_z, post.mean[:, 0], atol=1e-7 * scale, rtol=1e-7)
+    torch.testing.assert_close(var_z, post.variance[:, 0], atol=1e-6 * scale**2, rtol=1e-5)
+    _, cov = s.latent_covariance(u[:5])
+    torch.testing.assert_close(cov.diagonal(), var_z[:5], atol=1e-6 * scale**2, rtol=1e-5)
+
+
+def test_near_noiseless_interpolation_of_log_likelihood(data) -> None:
+    x, y = data
+    s = fit_surrogate(x, y, SurrogateSettings(transform="log_deficit"), seed=0)
+    got = s.log_likelihood_mean(torch.as_tensor(x))
+    np.testing.assert_allclose(got.numpy(), y, atol=1e-2 * np.ptp(y) + 1e-3)
+
+
+def test_warping_round_trip_and_moments() -> None:
+    w = OutputWarping("log_deficit", y_max=-10.0, scale=3.0)
+    y = np.array([-10.0, -11.0, -500.0])
+    z = torch.as_tensor(w.forward(y))
+    torch.testing.assert_close(w.plug_in(z), torch.as_tensor(y))
+    # E[log L] under z ~ N(m, v) by Monte Carlo against the closed form
+    m, v = torch.tensor([-0.3]), torch.tensor([0.04])
+    draws = m + v.sqrt() * torch.randn(400_000, generator=torch.Generator().manual_seed(0))
+    mc = w.plug_in(draws.double()).mean()
+    assert float(w.mean_log_likelihood(m.double(), v.double())[0]) == pytest.approx(
+        float(mc), rel=2e-3
+    )
+
+
+def test_expected_likelihood_is_lognormal_without_warping(data) -> None:
+    x, y = data
+    s = fit_surrogate(x, y, SurrogateSettings(transform="none"), seed=0)
+    u = torch.rand(10, 7, generator=torch.Generator().manual_seed(2), dtype=torch.float64)
+    m, v = s.latent_mean_var(u)
+    torch.testing.assert_close(s.log_expected_likelihood(u), m + 0.5 * v)
+
+
+def test_loo_score_matches_refitting_without_each_point(data) -> None:
+    x, y = data
+    s = fit_surrogate(x[:25], y[:25], SurrogateSettings(transform="log_deficit"), seed=0)
+    # brute force with the same hyperparameters: condition on n-1 points through the kernel
+    k_all = s._kernel(s.train_x, s.train_x) + torch.diag(
+        s.model.likelihood.noise.detach().reshape(-1).expand(25)
+    )
+    t = s.model.train_targets.detach() - s._prior_mean(s.train_x)
+    z = torch.as_tensor(s.warping.forward(y[:25]))
+    log_py = []
+    for i in range(25):
+        keep = torch.arange(25) != i
+        kk = k_all[keep][:, keep]
+        ki = k_all[i, keep]
+        mu = (s._prior_mean(s.train_x[i : i + 1])[0] + ki @ torch.linalg.solve(kk, t[keep]))
+        var = k_all[i, i] - ki @ torch.linalg.solve(kk, ki)
+        mu, var = mu * s._y_std + s._y_mean, var * s._y_std**2
+        lp = -0.5 * (z[i] - mu) ** 2 / var - 0.5 * torch.log(2 * torch.pi * var)
+        log_py.append(float(lp) + float(s.warping.log_abs_dz_dy(y[i : i + 1])[0]))
+    best = np.argsort(y[:25])[::-1][:9]
+    assert s.loo_log_score() == pytest.approx(float(np.mean(np.array(log_py)[best])), rel=1e-6)
+
+
+def test_auto_picks_the_better_loo_score(data) -> None:
+    x, y = data
+    fits = {k: fit_surrogate(x, y, SurrogateSettings(transform=k), 0) for k in
+            ("none", "log_deficit")}
+    auto = fit_surrogate(x, y, SurrogateSettings(), 0)
+    best = max(fits, key=lambda k: fits[k].loo_log_score())
+    assert auto.warping.kind == best
+
+
+def test_settings_validation() -> None:
+    with pytest.raises(ValueError, match="transform"):
+        SurrogateSettings(transform="log")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="deficit_scale"):
+        SurrogateSettings(deficit_scale=0.0)
+    with pytest.raises(ValueError, match="noise_variance"):
+        SurrogateSettings(noise_variance=0.0)
+    with pytest.raises(ValueError, match="finite"):
+        fit_surrogate(np.zeros((3, 2)), np.array([0.0, np.nan, 1.0]), SurrogateSettings(), 0)

@@ -1,0 +1,35 @@
+"""``susp-bo demo --smoke``: the main job end to end, as a new user runs it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from susp_bo.commands.demo import DEMO_TRUTH
+
+pytestmark = pytest.mark.slow
+
+
+def test_demo_smoke_writes_a_result_with_the_truth_and_figures(tmp_path: Path) -> None:
+    out = tmp_path / "demo"
+    done = subprocess.run(
+        [sys.executable, "-m", "susp_bo", "demo", "--smoke", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=900,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    payload = json.loads((out / "result.json").read_text())
+    assert payload["parameters"] == list(DEMO_TRUTH)
+    assert payload["reference"] == [DEMO_TRUTH[name] for name in payload["parameters"]]
+    assert payload["n_simulations"] == 2 * payload["n_evaluations"]
+    assert len(list((out / "data").glob("run_*.h5"))) == 2
+    assert len(list(out.glob("*.png"))) >= 3
+    # progress and the summary table go to stderr
+    assert "marginal MAP" in done.stderr
+    assert "simulations" in done.stderr
