@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
     parser.add_argument("--warmup", type=int, default=1000)
     parser.add_argument("--samples", type=int, default=3000)
-    parser.add_argument("--chains", nargs="+", type=int, default=[64, 1024, 4096])
+    parser.add_argument("--chains", nargs="+", type=int, default=[64, 256, 1024])
     parser.add_argument("--walkers", nargs="+", type=int, default=[32, 64])
     args = parser.parse_args(argv)
 

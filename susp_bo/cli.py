@@ -9,26 +9,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 from susp_bo import __version__
-
-Handler = Callable[[argparse.Namespace], int]
 
 
 class UsageError(ValueError):
     """Bad command-line input, reported as one line on stderr with exit code 2."""
-
-
-def _not_built(command: str, issue: str) -> Handler:
-    def handler(_args: argparse.Namespace) -> int:
-        print(
-            f"susp-bo {command}: not built yet ({issue}); no output was written.",
-            file=sys.stderr,
-        )
-        return 3
-
-    return handler
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -123,6 +110,18 @@ def build_parser() -> argparse.ArgumentParser:
     diagnose = sub.add_parser("diagnose", help="model-discrepancy workflow on a calibration result")
     diagnose.add_argument("result_dir")
     diagnose.add_argument("--out", required=True)
+    diagnose.add_argument(
+        "--simulator",
+        choices=("pybullet", "linear"),
+        default="pybullet",
+        help="simulator of the check and the recalibration: the study's PyBullet rig "
+        "(default) or the linearised rig (fast path); the ranking always uses the fast path",
+    )
+    diagnose.add_argument(
+        "--budget",
+        type=int,
+        help="likelihood evaluations of the recalibration (default: the study's)",
+    )
     diagnose.set_defaults(handler=_diagnose)
     return parser
 

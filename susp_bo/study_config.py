@@ -38,6 +38,7 @@ Example (also in notes/study_example.toml)::
     [output_error]
     sigma = "estimate"      # or one σ for all channels, or a table {channel = σ}
     correlation_length_hz = 0.5   # optional frequency correlation length (Hz)
+    sensor_noise_m_s2 = 0.005     # accelerometer noise floor; omit = from the runs' metadata
 """
 
 from __future__ import annotations
@@ -168,11 +169,16 @@ class OutputErrorConfig:
             mapping channel name → σ (log-amplitude units, > 0).
         correlation_length_hz: frequency correlation length of B (Hz, > 0), or
             None for independent frequencies.
+        sensor_noise_m_s2: white noise of the accelerometers (m/s² rms, >= 0), added
+            to the simulated spectra as a noise floor before the comparison; None
+            takes ``noise_m_s2`` from the runs' metadata (synthetic runs record it),
+            else 0.
     """
 
     section: ClassVar[str] = "output_error"
     sigma: str | float | Mapping[str, float] = "estimate"
     correlation_length_hz: float | None = None
+    sensor_noise_m_s2: float | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.sigma, Mapping):
@@ -190,6 +196,16 @@ class OutputErrorConfig:
         if self.correlation_length_hz is not None:
             _positive("output_error.correlation_length_hz", self.correlation_length_hz)
             object.__setattr__(self, "correlation_length_hz", float(self.correlation_length_hz))
+        noise = self.sensor_noise_m_s2
+        if noise is not None:
+            if isinstance(noise, bool) or not isinstance(noise, int | float) or not (
+                math.isfinite(noise) and noise >= 0.0
+            ):
+                raise ValueError(
+                    f"output_error.sensor_noise_m_s2: {noise!r} is not allowed; expected a "
+                    "number >= 0 (m/s^2 rms)"
+                )
+            object.__setattr__(self, "sensor_noise_m_s2", float(noise))
 
 
 _SECTIONS: dict[str, type] = {

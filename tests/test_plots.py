@@ -48,3 +48,12 @@ def test_fig1_changes_when_the_reference_moves(tmp_path: Path, rng: np.random.Ge
 
 def centre_of(bounds: np.ndarray) -> np.ndarray:
     return bounds.mean(axis=0)
+
+
+def test_fig2_and_pairs_follow_the_draws(tmp_path: Path, rng: np.random.Generator) -> None:
+    summary, samples, bounds = _summary(2, rng)
+    a = plots.plot_marginals(samples, summary, bounds, tmp_path / "a.png", units=["m", "s"])
+    b = plots.plot_marginals(0.5 * samples, summary, bounds, tmp_path / "b.png")
+    assert not np.array_equal(matplotlib.image.imread(a), matplotlib.image.imread(b))
+    p = plots.plot_pairs(samples, summary, bounds, tmp_path / "p.png", reference=bounds[0])
+    assert matplotlib.image.imread(p).shape[0] > 200

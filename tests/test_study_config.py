@@ -57,7 +57,9 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         seeds=SeedsConfig(calibration=0, mcmc=1),
         executor=ExecutorConfig(workers=8),
         mcmc=MCMCConfig(chains=64, draws=1500, warmup=1000),
-        output_error=OutputErrorConfig(sigma="estimate", correlation_length_hz=0.5),
+        output_error=OutputErrorConfig(
+            sigma="estimate", correlation_length_hz=0.5, sensor_noise_m_s2=0.005
+        ),
     )
 
 
@@ -103,6 +105,11 @@ def test_written_config_reads_back_equal_from_another_folder(
 _PARAMETERS_LINE = 'parameters = ["secondary_vertical_damping", "primary_vertical_stiffness"]'
 _RIG_LINE = 'rig = "rigs/my_trailer.toml"'
 BAD_EDITS = [
+    (
+        "sensor_noise_m_s2 = 0.005",
+        "sensor_noise_m_s2 = -0.1",
+        r"output_error\.sensor_noise_m_s2: -0\.1 is not allowed; expected a number >= 0",
+    ),
     (
         "batch_size = 8",
         "batch_sise = 8",

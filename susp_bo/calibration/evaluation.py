@@ -25,6 +25,7 @@ from susp_bo.calibration.likelihood import OutputError, log_likelihood
 from susp_bo.execution import TaskOutcome, run_tasks
 from susp_bo.rig.simulator import Rig
 from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.spectra import with_noise_floor
 from susp_bo.rig.track import SpeedProfile, TrackGeometry
 from susp_bo.store import EvaluationStore
 
@@ -92,6 +93,9 @@ class LikelihoodEvaluator:
         executor: where simulations run.
         frequencies_hz: (F,) grid of the spectra.
         progress: show a tqdm bar per batch of simulations.
+        noise_m_s2: sensor noise (m/s² rms) added to the simulated spectra as a
+            floor before the comparison (the measurement model); 0 = none.
+        sample_rate_hz: sampling rate of the measurements (Hz), for the floor.
     """
 
     def __init__(
@@ -105,6 +109,8 @@ class LikelihoodEvaluator:
         executor: Executor,
         frequencies_hz: np.ndarray,
         progress: bool = True,
+        noise_m_s2: float = 0.0,
+        sample_rate_hz: float = 1.0,
     ) -> None:
         self.spec = spec
         self.names = tuple(names)
@@ -115,6 +121,8 @@ class LikelihoodEvaluator:
         self.executor = executor
         self.frequencies_hz = np.asarray(frequencies_hz, dtype=np.float64)
         self.progress = progress
+        self.noise_m_s2 = float(noise_m_s2)
+        self.sample_rate_hz = float(sample_rate_hz)
         self.simulations_run = 0
         self.simulations_reused = 0
         self.failures: list[str] = []
@@ -185,7 +193,9 @@ class LikelihoodEvaluator:
             if any(s is None for s in spectra):
                 values.append(np.nan)
                 continue
-            simulated = np.stack([np.asarray(s) for s in spectra])
+            simulated = with_noise_floor(
+                np.stack([np.asarray(s) for s in spectra]), self.noise_m_s2, self.sample_rate_hz
+            )
             values.append(
                 float(log_likelihood(self.measured, simulated, self.error, self.frequencies_hz))
             )

@@ -236,11 +236,11 @@ def _seed(master: int, iteration: int, purpose: int) -> int:
 
 
 def _impute(y: np.ndarray) -> np.ndarray:
+    if np.any(y == math.inf):
+        raise ValueError("evaluate: returned +inf, which is not a valid log-likelihood")
     finite = np.isfinite(y)
     if not finite.any():
         raise RuntimeError("every log L evaluation failed (NaN/-inf): nothing to fit")
-    if np.any(y == math.inf):
-        raise ValueError("evaluate: returned +inf, which is not a valid log-likelihood")
     return np.where(finite, y, np.min(y[finite]))
 
 

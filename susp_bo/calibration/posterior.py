@@ -70,6 +70,8 @@ def marginal_density(
     padded = np.concatenate([left, counts, right]).astype(np.float64)
     smooth = gaussian_filter1d(padded, sigma=h / width, mode="constant", truncate=6.0)[pad:-pad]
     centres = 0.5 * (edges[1:] + edges[:-1])
+    if not smooth.sum() > 0.0:  # no draw inside the bounds
+        return np.zeros_like(np.asarray(grid, dtype=np.float64))
     dens = smooth / (smooth.sum() * width)
     g = np.asarray(grid, dtype=np.float64)
     out = np.interp(g, centres, dens, left=dens[0], right=dens[-1])

@@ -28,6 +28,7 @@ import logging
 import math
 import sys
 import time
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,7 @@ class PreparedStudy:
         measured: (ν x C x F) measured log-amplitude spectra.
         tracks: the μ track stretches.
         error: the output error model B.
+        noise_m_s2: accelerometer noise (m/s² rms) added to simulated spectra as a floor.
         reference: (q,) true parameters when the data are synthetic, else None.
     """
 
@@ -83,6 +85,7 @@ class PreparedStudy:
     measured: np.ndarray
     tracks: tuple[TrackRun, ...]
     error: OutputError
+    noise_m_s2: float
     reference: np.ndarray | None
 
     @property
@@ -124,6 +127,25 @@ def _reference(runs: tuple[MeasuredRun, ...], names: tuple[str, ...]) -> np.ndar
     if not isinstance(truth, dict) or not all(n in truth for n in names):
         return None
     return np.array([float(truth[n]) for n in names])
+
+
+def _sensor_noise(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> float:
+    """The configured sensor noise, else the one the runs' metadata record, else 0."""
+    if config.output_error.sensor_noise_m_s2 is not None:
+        return config.output_error.sensor_noise_m_s2
+    rates = {run.sample_rate_hz for run in runs}
+    if len(rates) > 1:
+        raise StudyError(
+            f"data: the runs are sampled at different rates {sorted(rates)} Hz; resample them "
+            "to one rate (the sensor-noise floor and the spectra assume one)"
+        )
+    recorded = {float((run.metadata or {}).get("noise_m_s2", 0.0)) for run in runs}
+    if len(recorded) > 1:
+        raise StudyError(
+            f"data: the runs record different sensor noise levels {sorted(recorded)} m/s^2; "
+            "set output_error.sensor_noise_m_s2"
+        )
+    return recorded.pop()
 
 
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
@@ -174,7 +196,45 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         measured=measured,
         tracks=tracks,
         error=_output_error(config, measured, spec.channels),
+        noise_m_s2=_sensor_noise(config, runs),
         reference=_reference(runs, tuple(names)),
+    )
+
+
+def store_fingerprint(
+    study: PreparedStudy, spec: RigSpec | None = None, names: tuple[str, ...] | None = None
+) -> dict[str, str]:
+    """What identifies the evaluations of ``study`` (or of ``spec``/``names`` on its data)."""
+    return study_fingerprint(
+        (spec or study.spec).fingerprint(),
+        json.dumps([t.track_id for t in study.tracks]),
+        names or study.names,
+        output_error=json.dumps(dataclasses.asdict(study.error)),
+        sensor_noise_m_s2=repr(study.noise_m_s2),
+    )
+
+
+def study_evaluator(
+    study: PreparedStudy,
+    store: EvaluationStore,
+    executor: Executor,
+    progress: bool = True,
+    spec: RigSpec | None = None,
+    names: tuple[str, ...] | None = None,
+) -> LikelihoodEvaluator:
+    """``evaluate(W) -> log L`` on the study's data, for its rig or an augmented ``spec``."""
+    return LikelihoodEvaluator(
+        spec or study.spec,
+        names or study.names,
+        study.tracks,
+        study.measured,
+        study.error,
+        store,
+        executor,
+        study.frequencies_hz,
+        progress=progress,
+        noise_m_s2=study.noise_m_s2,
+        sample_rate_hz=study.runs[0].sample_rate_hz,
     )
 
 
@@ -233,6 +293,7 @@ def result_payload(
             "channels": list(study.spec.channels),
             "sigma": list(study.error.sigma),
             "correlation_length_hz": study.error.correlation_length_hz,
+            "sensor_noise_m_s2": study.noise_m_s2,
         },
         "rig": study.spec.name,
         "data": str(study.config.data),
@@ -283,30 +344,14 @@ def run_study(
         len(study.runs),
         study.names,
     )
-    fingerprint = study_fingerprint(
-        study.spec.fingerprint(),
-        json.dumps([t.track_id for t in study.tracks]),
-        study.names,
-        output_error=json.dumps(dataclasses.asdict(study.error)),
-    )
     started = time.perf_counter()
     with (
-        EvaluationStore(out / STORE_NAME, fingerprint) as store,
+        EvaluationStore(out / STORE_NAME, store_fingerprint(study)) as store,
         make_executor(
             workers=config.executor.workers, scheduler=config.executor.scheduler
         ) as executor,
     ):
-        evaluator = LikelihoodEvaluator(
-            study.spec,
-            study.names,
-            study.tracks,
-            study.measured,
-            study.error,
-            store,
-            executor,
-            study.frequencies_hz,
-            progress=progress,
-        )
+        evaluator = study_evaluator(study, store, executor, progress=progress)
 
         def report(item: IterationReport) -> None:
             line = (

@@ -7,19 +7,23 @@ log-normal prior, outputscale, constant mean) refitted by maximum a posteriori
 whenever the data grow.
 
 Dynamic range of log L. Far from the maximum log L is −10³…−10⁴ while the posterior
-lives within a few nats of the maximum; a stationary GP fitted to raw log L spends
-its flexibility on the far bowl and is imprecise exactly where the posterior
-lives (the paper's open difficulty). The default fix is an output warping, the
-*log-deficit* transform
+lives within a few nats of the maximum (the paper's open difficulty). Two outputs
+can be kriged:
 
-    z = −log(1 + (y_max − y) / s)          y = y_max − s (exp(−z) − 1)
+- ``"none"``: raw log L (standardised). Excellent when log L is close to quadratic
+  over the box (a Matérn GP with a long lengthscale follows the bowl);
+- ``"log_deficit"``: the output warping z = −log(1 + (y_max − y)/s), inverse
+  y = y_max − s (exp(−z) − 1), y_max the best observed log L and s the deficit scale
+  (default q nats: 2 (y_max − y) ~ χ²_q inside the posterior mass). Linear near the
+  maximum, logarithmic compression of the far field: better when log L saturates or
+  has plateaus away from the maximum (as a spectral misfit does once a resonance
+  leaves the band). Predictions map back with the exact lognormal moment
+  E[y] = y_max − s (exp(−μ_z + σ_z²/2) − 1).
 
-with y_max the best observed log L and s the deficit scale (default q nats, the
-order of the deficits inside the posterior mass: 2 (y_max − y) ~ χ²_q there). It
-is linear within a few s of the maximum and compresses the far field
-logarithmically. The GP models z; predictions are mapped back with the exact
-lognormal moment E[y] = y_max − s (exp(−μ_z + σ_z²/2) − 1). ``transform="none"``
-models raw log L (measured against the default in benchmarks/posterior_accuracy.py).
+The default ``"auto"`` fits both at every refit and keeps the one with the higher
+closed-form leave-one-out log predictive density of log L (Jacobian included) over
+the best third of the points: the choice is measured on the data, at each step.
+benchmarks/posterior_accuracy.py reports all three (auto, raw, log-deficit).
 
 A fast torch predictor (no GPyTorch lazy tensors) is precomputed from the fitted
 model for MCMC: it evaluates the posterior mean (and variance) for thousands of
@@ -63,8 +67,8 @@ class SurrogateSettings:
         deficit_scale: s of the log-deficit transform in nats (> 0); None means q.
         noise_variance: fixed observation noise in standardised units (>= 1e-6, GPyTorch's
             floor).
-        mean: GP prior mean, "quadratic" (negative quadratic, :class:`NegativeQuadraticMean`)
-            or "constant".
+        mean: GP prior mean, "constant" (default) or "quadratic" (negative quadratic trend,
+            :class:`NegativeQuadraticMean`; measured no better on the test targets, slower).
     """
 
     transform: Transform = "auto"

@@ -57,13 +57,17 @@ def _fit_from_result(study: Any, payload: dict[str, Any]) -> Any:
 
 def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bool) -> Any:
     """``recalibrate(best)``: the study loop on the augmented rig (PyBullet)."""
-    from susp_bo.calibration.evaluation import LikelihoodEvaluator
     from susp_bo.calibration.loop import calibrate
-    from susp_bo.calibration.study import STORE_NAME, calibration_settings
+    from susp_bo.calibration.study import (
+        STORE_NAME,
+        calibration_settings,
+        store_fingerprint,
+        study_evaluator,
+    )
     from susp_bo.discrepancy.effects import get_effect, with_effect
     from susp_bo.discrepancy.fitting import Fit
     from susp_bo.execution import make_executor
-    from susp_bo.store import EvaluationStore, study_fingerprint
+    from susp_bo.store import EvaluationStore
 
     def recalibrate(best: Any) -> Fit:
         effect = get_effect(best.effect)
@@ -90,22 +94,13 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
                 max_evaluations=budget,
                 initial_design_size=min(budget, settings.initial_design_size or budget),
             )
-        fingerprint = study_fingerprint(
-            spec.fingerprint(),
-            json.dumps([t.track_id for t in study.tracks]),
-            names,
-            output_error=json.dumps(dataclasses.asdict(study.error)),
-        )
         print(f"susp-bo diagnose: recalibrating with {best.effect} ({names})", file=sys.stderr)
         config = study.config.executor
         with (
-            EvaluationStore(folder / STORE_NAME, fingerprint) as store,
+            EvaluationStore(folder / STORE_NAME, store_fingerprint(study, spec, names)) as store,
             make_executor(workers=config.workers, scheduler=config.scheduler) as executor,
         ):
-            evaluator = LikelihoodEvaluator(
-                spec, names, study.tracks, study.measured, study.error, store, executor,
-                study.frequencies_hz, progress=progress,
-            )  # fmt: skip
+            evaluator = study_evaluator(study, store, executor, progress, spec, names)
             result = calibrate(evaluator, bounds, names, settings, progress=progress)
         summary = result.summary.to_dict()
         span = bounds[1] - bounds[0]
@@ -175,7 +170,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         measured=study.measured,
         tracks=study.tracks,
         error=study.error,
-        noise_m_s2=float(metadata.get("noise_m_s2", 0.0) or 0.0),
+        noise_m_s2=study.noise_m_s2,
         reference=truth,
     )
     print(

@@ -26,6 +26,7 @@ from susp_bo.calibration.evaluation import TrackRun, simulate_spectra
 from susp_bo.calibration.likelihood import OutputError
 from susp_bo.rig.linear import LinearisedRig
 from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.spectra import with_noise_floor
 
 FloatArray = np.ndarray
 
@@ -89,16 +90,6 @@ def make_simulator(kind: str) -> Simulator:
     if kind == "pybullet":
         return PyBulletSimulator()
     raise ValueError(f"simulator: got {kind!r}; allowed 'linear', 'pybullet'")
-
-
-def add_noise_floor(
-    log_amplitude: FloatArray, noise_m_s2: float, sample_rate_hz: float
-) -> FloatArray:
-    """Spectra with white sensor noise of ``noise_m_s2`` rms added (PSD ``2 σ² / fs``)."""
-    if noise_m_s2 <= 0.0:
-        return log_amplitude
-    floor = 2.0 * noise_m_s2**2 / sample_rate_hz
-    return 0.5 * np.log(np.exp(2.0 * log_amplitude) + floor)
 
 
 @dataclass(frozen=True)
@@ -165,4 +156,4 @@ class DiagnosisProblem:
         """``h(x_i, w)`` on every track, noise floor included: (ν x C x F)."""
         parameters = dict(zip(names, (float(v) for v in w)))
         out = np.stack([simulator.spectra(spec, parameters, track) for track in self.tracks])
-        return add_noise_floor(out, self.noise_m_s2, spec.simulation.sample_rate_hz)
+        return with_noise_floor(out, self.noise_m_s2, spec.simulation.sample_rate_hz)

@@ -242,3 +242,30 @@ def log_amplitude_spectra(
 
 
 __all__ = ["Spectra", "SpectrumSettings", "log_amplitude_spectra"]
+
+
+def with_noise_floor(
+    log_amplitude: FloatArray, noise_m_s2: float, sample_rate_hz: float
+) -> FloatArray:
+    """Spectra as an accelerometer with white noise of ``noise_m_s2`` rms would measure them.
+
+    The noise adds its one-sided PSD ``2 σ² / fs`` ((m/s²)²/Hz) to the signal's PSD
+    in every band (signal and noise are independent), so the log-amplitude becomes
+    ``0.5 ln(exp(2 y) + 2 σ² / fs)``. This is the measurement model applied to
+    simulated spectra before they are compared with measured ones.
+
+    Args:
+        log_amplitude: (... x F) log-amplitude spectra, ln((m/s²)/√Hz).
+        noise_m_s2: sensor noise standard deviation (m/s² rms), >= 0.
+        sample_rate_hz: sampling rate of the measured signals (Hz), > 0.
+
+    Returns:
+        Array of the same shape (the input itself when ``noise_m_s2`` is 0).
+    """
+    if not noise_m_s2 >= 0.0:
+        raise ValueError(f"noise_m_s2: got {noise_m_s2}; expected >= 0 m/s^2")
+    require_positive("sample_rate_hz", sample_rate_hz)
+    if noise_m_s2 == 0.0:
+        return log_amplitude
+    floor = 2.0 * noise_m_s2**2 / sample_rate_hz
+    return 0.5 * np.log(np.exp(2.0 * np.asarray(log_amplitude, dtype=np.float64)) + floor)

@@ -89,8 +89,10 @@ def test_estimate_from_replicates_and_correlation_length(rng: np.random.Generato
 
 @pytest.mark.parametrize(
     ("kwargs", "field"),
-    [({"sigma": (0.1, -1.0)}, "sigma"), ({"sigma": (0.1,), "correlation_length_hz": 0.0},
-                                          "correlation_length_hz")],
+    [
+        ({"sigma": (0.1, -1.0)}, "sigma"),
+        ({"sigma": (0.1,), "correlation_length_hz": 0.0}, "correlation_length_hz"),
+    ],
 )
 def test_output_error_validation_names_the_field(kwargs: dict, field: str) -> None:
     with pytest.raises(ValueError, match=field):

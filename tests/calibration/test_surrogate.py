@@ -23,8 +23,9 @@ def data() -> tuple[np.ndarray, np.ndarray]:
     return to_unit(x, TARGET.bounds), TARGET(x)
 
 
-@pytest.mark.parametrize("transform", ["none", "log_deficit"])
-@pytest.mark.parametrize("mean", ["constant", "quadratic"])
+@pytest.mark.parametrize(
+    ("transform", "mean"), [("none", "constant"), ("log_deficit", "quadratic")]
+)
 def test_fast_predictor_equals_gpytorch_posterior(data, transform: str, mean: str) -> None:
     x, y = data
     s = fit_surrogate(x, y, SurrogateSettings(transform=transform, mean=mean), seed=0)
@@ -82,7 +83,7 @@ def test_loo_score_matches_refitting_without_each_point(data) -> None:
         keep = torch.arange(25) != i
         kk = k_all[keep][:, keep]
         ki = k_all[i, keep]
-        mu = (s._prior_mean(s.train_x[i : i + 1])[0] + ki @ torch.linalg.solve(kk, t[keep]))
+        mu = s._prior_mean(s.train_x[i : i + 1])[0] + ki @ torch.linalg.solve(kk, t[keep])
         var = k_all[i, i] - ki @ torch.linalg.solve(kk, ki)
         mu, var = mu * s._y_std + s._y_mean, var * s._y_std**2
         lp = -0.5 * (z[i] - mu) ** 2 / var - 0.5 * torch.log(2 * torch.pi * var)
@@ -93,8 +94,9 @@ def test_loo_score_matches_refitting_without_each_point(data) -> None:
 
 def test_auto_picks_the_better_loo_score(data) -> None:
     x, y = data
-    fits = {k: fit_surrogate(x, y, SurrogateSettings(transform=k), 0) for k in
-            ("none", "log_deficit")}
+    fits = {
+        k: fit_surrogate(x, y, SurrogateSettings(transform=k), 0) for k in ("none", "log_deficit")
+    }
     auto = fit_surrogate(x, y, SurrogateSettings(), 0)
     best = max(fits, key=lambda k: fits[k].loo_log_score())
     assert auto.warping.kind == best

@@ -147,3 +147,21 @@ def test_spectra_container_validation() -> None:
         Spectra(frequencies[::-1], ("a", "b"), np.zeros((2, 3)))
     with pytest.raises(ValueError, match=r"NaN or inf"):
         Spectra(frequencies, ("a", "b"), np.full((2, 3), -np.inf))
+
+
+def test_noise_floor_adds_the_white_noise_psd_that_welch_measures() -> None:
+    from susp_bo.rig.spectra import with_noise_floor
+
+    settings = SpectrumSettings(f_min_hz=0.5, f_max_hz=20.0, n_frequencies=24, segment_s=8.0)
+    fs, sigma = 100.0, 0.02
+    noise = np.random.default_rng(3).normal(0.0, sigma, size=(1, int(600 * fs)))
+    measured = log_amplitude_spectra(noise, fs, ("n",), settings).log_amplitude[0]
+    floor_only = with_noise_floor(np.full(24, -60.0), sigma, fs)
+    assert np.allclose(floor_only, 0.5 * np.log(2.0 * sigma**2 / fs))
+    assert abs(np.mean(measured - floor_only)) < 0.02
+    signal = np.linspace(-6.0, -3.0, 24)
+    total = with_noise_floor(signal, sigma, fs)
+    assert np.allclose(np.exp(2 * total) - np.exp(2 * signal), 2.0 * sigma**2 / fs)
+    assert with_noise_floor(signal, 0.0, fs) is signal
+    with pytest.raises(ValueError, match="noise_m_s2"):
+        with_noise_floor(signal, -1.0, fs)

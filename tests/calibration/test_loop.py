@@ -1,0 +1,151 @@
+"""calibrate(): posterior accuracy against exact posteriors, determinism, failures, callbacks.
+
+The MMTV tests run below the issue's budget of 50 (q + 2) evaluations (40 of 200 for the
+2-D banana, 200 of 450 in 7-D) to stay within the suite's time budget; the full-budget
+runs and the comparison with PyVBMC are in benchmarks/posterior_accuracy.py.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from susp_bo.calibration.loop import CalibrationSettings, IterationReport, calibrate
+from susp_bo.calibration.test_functions import TARGETS, marginal_total_variation
+
+FAST = CalibrationSettings(mcmc_chains=32, mcmc_warmup=500, mcmc_samples=800)
+
+
+@pytest.mark.parametrize(
+    ("name", "budget", "batch"),
+    [("banana_2d", 40, 4), ("correlated_gaussian_7d", 200, 8), ("weakly_identified_7d", 200, 8)],
+)
+def test_posterior_accuracy_mmtv_below_0_1(name: str, budget: int, batch: int) -> None:
+    target = TARGETS[name]()
+    assert budget <= 50 * (target.dim + 2)
+    settings = replace(FAST, max_evaluations=budget, batch_size=batch)
+    result = calibrate(target, target.bounds, target.names, settings, progress=False)
+    assert result.n_evaluations <= budget
+    mmtv = marginal_total_variation(target, result.samples).mean()
+    assert mmtv <= 0.1, mmtv
+    assert np.all(result.summary.r_hat < 1.1)
+
+
+def _small(seed: int = 0, **kw: object) -> CalibrationSettings:
+    return replace(
+        CalibrationSettings(
+            seed=seed,
+            max_evaluations=22,
+            batch_size=3,
+            mcmc_chains=8,
+            mcmc_warmup=100,
+            mcmc_samples=100,
+            candidate_count=64,
+        ),
+        **kw,
+    )
+
+
+def test_deterministic_given_seed_and_evaluations() -> None:
+    target = TARGETS["banana_2d"]()
+    a = calibrate(target, target.bounds, target.names, _small(), progress=False)
+    b = calibrate(target, target.bounds, target.names, _small(), progress=False)
+    np.testing.assert_array_equal(a.X, b.X)
+    np.testing.assert_array_equal(a.draws, b.draws)
+    assert a.to_dict() == b.to_dict()
+    c = calibrate(target, target.bounds, target.names, _small(seed=1), progress=False)
+    assert not np.array_equal(a.X, c.X)
+
+
+def test_pyro_backend_gives_the_same_posterior() -> None:
+    target = TARGETS["banana_2d"]()
+    a = calibrate(target, target.bounds, target.names, _small(), progress=False)
+    b = calibrate(target, target.bounds, target.names, _small(mcmc_backend="pyro"), progress=False)
+    np.testing.assert_array_equal(a.draws, b.draws)
+
+
+def test_failed_evaluations_are_kept_as_nan_and_avoided() -> None:
+    target = TARGETS["banana_2d"]()
+    batches: list[int] = []
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        batches.append(w.shape[0])
+        out = target(w)
+        out[w[:, 0] > 0.7] = np.nan  # the simulator diverges there
+        return out
+
+    reports: list[IterationReport] = []
+    result = calibrate(
+        evaluate, target.bounds, target.names, _small(), progress=False, on_iteration=reports.append
+    )
+    failed = ~np.isfinite(result.y)
+    assert failed.any() and np.all(result.X[failed, 0] > 0.7)
+    assert np.mean(result.samples[:, 0] > 0.7) < 0.05
+    assert batches[0] == 10 and all(b <= 3 for b in batches[1:])
+    assert len(reports) == len(result.history) >= 1
+    assert reports[-1].n_evaluations == result.n_evaluations == sum(batches)
+    assert reports[-1].n_failed == int(failed.sum())
+    assert "best log L" in reports[-1].line()
+    payload = result.to_dict()
+    assert json.loads(json.dumps(payload))["n_failed"] == int(failed.sum())
+
+
+def test_every_failure_raises() -> None:
+    target = TARGETS["banana_2d"]()
+    with pytest.raises(RuntimeError, match="failed"):
+        calibrate(
+            lambda w: np.full(w.shape[0], np.nan),
+            target.bounds,
+            target.names,
+            _small(),
+            progress=False,
+        )
+
+
+def test_stopping_rule_before_budget() -> None:
+    """A flat-topped likelihood is learned quickly: refinement converges before the budget."""
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+
+    def smooth(w: np.ndarray) -> np.ndarray:
+        return -0.5 * np.sum(((w - 0.5) / 0.3) ** 2, axis=1)
+
+    settings = replace(_small(), max_evaluations=120, refine_tolerance=0.05)
+    result = calibrate(smooth, bounds, ["a", "b"], settings, progress=False)
+    assert result.stop_reason == "converged" and result.n_evaluations < 120
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("batch_size", 0),
+        ("max_evaluations", 1),
+        ("ei_tolerance", 0.0),
+        ("estimator", "max"),
+        ("max_ego_fraction", 1.5),
+        ("mcmc_backend", "numpyro"),
+        ("num_threads", 0),
+    ],
+)
+def test_settings_validation_names_the_field(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=field):
+        CalibrationSettings(**{field: value})
+
+
+def test_bad_evaluate_output_and_names() -> None:
+    target = TARGETS["banana_2d"]()
+    with pytest.raises(ValueError, match="evaluate"):
+        calibrate(lambda w: np.zeros(3), target.bounds, target.names, _small(), progress=False)
+    with pytest.raises(ValueError, match="names"):
+        calibrate(target, target.bounds, ["a"], _small(), progress=False)
+    with pytest.raises(ValueError, match="inf"):
+        calibrate(
+            lambda w: np.full(w.shape[0], math.inf),
+            target.bounds,
+            target.names,
+            _small(),
+            progress=False,
+        )
