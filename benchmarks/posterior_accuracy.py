@@ -4,9 +4,9 @@ For each analytic target of ``susp_bo.calibration.test_functions`` (exact poster
 known) and each budget, this script runs in the same process:
 
 - ``susp_bo``: :func:`susp_bo.calibration.loop.calibrate` with default settings
-  (output warping chosen by leave-one-out, ``transform="auto"``) — the tool;
-- ``susp_bo-raw``: the same with ``transform="none"`` (raw log L kriged), the
-  measurement behind the choice of the dynamic-range fix;
+  (raw log L kriged, ``transform="none"``) — the tool;
+- ``susp_bo-auto``: the same with ``transform="auto"`` (warping chosen by leave-one-out
+  at each refit) — with the next one, the measurement behind the dynamic-range choice;
 - ``susp_bo-logdef``: the same with ``transform="log_deficit"`` always;
 - ``susp_bo-ego``: EGO only (no posterior refinement), i.e. the paper's method
   made batch-parallel;
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--methods",
         nargs="+",
-        default=["susp_bo", "susp_bo-raw", "susp_bo-logdef", "susp_bo-ego", "pyvbmc", "bolfi"],
+        default=["susp_bo", "susp_bo-auto", "susp_bo-logdef", "susp_bo-ego", "pyvbmc", "bolfi"],
     )
     parser.add_argument("--batch-size", type=int, default=8)
     parser.add_argument("--out", help="write the rows as JSON to this file")
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     base = CalibrationSettings(batch_size=args.batch_size)
     runners: dict[str, Runner] = {
         "susp_bo": run_susp_bo(base),
-        "susp_bo-raw": run_susp_bo(replace(base, surrogate=SurrogateSettings(transform="none"))),
+        "susp_bo-auto": run_susp_bo(replace(base, surrogate=SurrogateSettings(transform="auto"))),
         "susp_bo-logdef": run_susp_bo(
             replace(base, surrogate=SurrogateSettings(transform="log_deficit"))
         ),
