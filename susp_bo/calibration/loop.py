@@ -68,7 +68,10 @@ class CalibrationSettings:
     """Settings of :func:`calibrate` (defaults suit q ≈ 2–10).
 
     Args:
-        seed: master seed.
+        seed: master seed (design, surrogate fits, acquisition, refinement).
+        mcmc_seed: seed of the final MCMC; None derives it from ``seed``. A different
+            value re-draws the posterior on the same surrogate (a cheap check of
+            Monte Carlo error) without changing any simulator evaluation.
         batch_size: points proposed per iteration (parallel simulator calls), >= 1.
         max_evaluations: budget of log L evaluations, design included; None = 50 (q + 2).
         initial_design_size: design size; None = max(10, 5 q).
@@ -92,6 +95,7 @@ class CalibrationSettings:
     """
 
     seed: int = 0
+    mcmc_seed: int | None = None
     batch_size: int = 4
     max_evaluations: int | None = None
     initial_design_size: int | None = None
@@ -393,7 +397,11 @@ def calibrate(
             n_chains=settings.mcmc_chains,
             warmup_steps=settings.mcmc_warmup,
             num_samples=settings.mcmc_samples,
-            seed=_seed(settings.seed, _FINAL, 4),
+            seed=(
+                _seed(settings.seed, _FINAL, 4)
+                if settings.mcmc_seed is None
+                else _seed(settings.mcmc_seed, _FINAL, 5)
+            ),
             estimator=settings.estimator,
             backend=settings.mcmc_backend,
         )

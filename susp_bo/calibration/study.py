@@ -242,6 +242,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
     """The loop settings a study config asks for."""
     return CalibrationSettings(
         seed=config.seeds.calibration,
+        mcmc_seed=config.seeds.mcmc,
         batch_size=config.budget.batch_size,
         max_evaluations=config.budget.max_evaluations,
         initial_design_size=config.budget.initial_design,

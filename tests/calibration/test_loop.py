@@ -50,6 +50,15 @@ def _small(seed: int = 0, **kw: object) -> CalibrationSettings:
     )
 
 
+def test_mcmc_seed_redraws_the_posterior_without_new_evaluations() -> None:
+    target = TARGETS["banana_2d"]()
+    a = calibrate(target, target.bounds, target.names, _small(mcmc_seed=1), progress=False)
+    b = calibrate(target, target.bounds, target.names, _small(mcmc_seed=2), progress=False)
+    np.testing.assert_array_equal(a.X, b.X)
+    np.testing.assert_array_equal(a.y, b.y)
+    assert not np.array_equal(a.draws, b.draws)
+
+
 def test_deterministic_given_seed_and_evaluations() -> None:
     target = TARGETS["banana_2d"]()
     a = calibrate(target, target.bounds, target.names, _small(), progress=False)
