@@ -44,6 +44,14 @@ def _rows(store: Path) -> list[tuple[str, str, int, str]]:
         db.close()
 
 
+def _recorded(store: Path) -> int:
+    """Rows in the store so far; 0 while the file or its tables are still being created."""
+    try:
+        return len(_rows(store)) if store.exists() else 0
+    except sqlite3.DatabaseError:
+        return 0
+
+
 @pytest.fixture(scope="module")
 def uninterrupted(fast_rig, fast_data, study_writer, tmp_path_factory) -> Path:
     """Results folder of the study run once without interruption (2 worker processes)."""
@@ -92,16 +100,14 @@ def test_kill_9_mid_batch_then_resume_gives_the_same_result(
     deadline = time.monotonic() + 300
     try:
         # the first batch is the 6-point design on 2 tracks (12 simulations): kill inside it
-        while time.monotonic() < deadline:
-            if store.exists() and len(_rows(store)) >= 5:
-                break
+        while time.monotonic() < deadline and _recorded(store) < 5:
             assert process.poll() is None, "the study ended before it could be killed"
             time.sleep(0.05)
         os.kill(process.pid, signal.SIGKILL)
-        process.wait(timeout=30)
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)  # its orphaned pool workers too
+        process.wait(timeout=30)
     assert process.returncode == -signal.SIGKILL
     before = {key: created for key, _, _, created in _rows(store)}
     assert 5 <= len(before) < 20
