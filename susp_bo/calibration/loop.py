@@ -404,6 +404,7 @@ def calibrate(
             ),
             estimator=settings.estimator,
             backend=settings.mcmc_backend,
+            progress=progress,
         )
         log_l = surrogate_log_likelihood(surrogate, settings.estimator)
         summary = summarize(draws_u.numpy(), b, list(names), log_l)

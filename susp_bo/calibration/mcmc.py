@@ -33,12 +33,14 @@ kernel's own ``torch.Generator`` seeded in ``setup``; nothing touches global sta
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable
 
 import pyro.ops.stats as pyro_stats
 import torch
 from pyro.infer import MCMC
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
+from tqdm import tqdm
 
 Potential = Callable[[torch.Tensor], torch.Tensor]
 
@@ -206,7 +208,11 @@ class RandomWalkMetropolis(MCMCKernel):
 
 
 def run_vectorized(
-    kernel: RandomWalkMetropolis, num_samples: int, warmup_steps: int, thin: int = 1
+    kernel: RandomWalkMetropolis,
+    num_samples: int,
+    warmup_steps: int,
+    thin: int = 1,
+    progress: bool = False,
 ) -> torch.Tensor:
     """Runs the kernel in a plain torch loop (fast path).
 
@@ -215,6 +221,7 @@ def run_vectorized(
         num_samples: sampling steps after warm-up (>= 1).
         warmup_steps: adaptation steps, discarded.
         thin: keep every thin-th sampling step.
+        progress: a tqdm bar of kernel steps (all chains at once) on stderr.
 
     Returns:
         (n_chains x (num_samples // thin) x q) draws.
@@ -223,27 +230,43 @@ def run_vectorized(
         raise ValueError(f"num_samples {num_samples} >= 1, warmup_steps {warmup_steps} >= 0, thin")
     kernel.setup(warmup_steps)
     params = kernel.initial_params
-    for _ in range(warmup_steps):
-        params = kernel.sample(params)
     n_keep = num_samples // thin
     chains, q = params[kernel.site].shape
-    out = torch.empty(n_keep, chains, q, dtype=torch.float64)
-    for i in range(n_keep * thin):
-        params = kernel.sample(params)
-        if (i + 1) % thin == 0:
-            out[(i + 1) // thin - 1] = params[kernel.site]
+    bar = tqdm(
+        total=warmup_steps + n_keep * thin,
+        desc=f"MCMC ({chains} chains)",
+        unit="step",
+        file=sys.stderr,
+        disable=not progress,
+        mininterval=0.5,
+    )
+    with bar:
+        for _ in range(warmup_steps):
+            params = kernel.sample(params)
+            bar.update()
+        out = torch.empty(n_keep, chains, q, dtype=torch.float64)
+        for i in range(n_keep * thin):
+            params = kernel.sample(params)
+            bar.update()
+            if (i + 1) % thin == 0:
+                out[(i + 1) // thin - 1] = params[kernel.site]
     return out.transpose(0, 1).contiguous()
 
 
-def run_pyro(kernel: RandomWalkMetropolis, num_samples: int, warmup_steps: int) -> torch.Tensor:
-    """Runs the kernel through ``pyro.infer.MCMC``; returns (n_chains x num_samples x q)."""
+def run_pyro(
+    kernel: RandomWalkMetropolis, num_samples: int, warmup_steps: int, progress: bool = False
+) -> torch.Tensor:
+    """Runs the kernel through ``pyro.infer.MCMC``; returns (n_chains x num_samples x q).
+
+    ``progress`` shows Pyro's own progress bar.
+    """
     mcmc = MCMC(
         kernel,
         num_samples=num_samples,
         warmup_steps=warmup_steps,
         initial_params={kernel.site: kernel.initial_params[kernel.site]},
         num_chains=1,
-        disable_progbar=True,
+        disable_progbar=not progress,
     )
     mcmc.run()
     draws = mcmc.get_samples()[kernel.site]  # num_samples x n_chains x q

@@ -86,6 +86,7 @@ def sample_surrogate_posterior(
     estimator: Estimator = "plug_in",
     backend: Backend = "vectorized",
     thin: int = 1,
+    progress: bool = False,
 ) -> tuple[torch.Tensor, dict[str, float]]:
     """Runs the MH kernel on the surrogate posterior.
 
@@ -98,6 +99,7 @@ def sample_surrogate_posterior(
         estimator: how L̃ is taken from the GP (module docstring).
         backend: "vectorized" (plain torch loop) or "pyro" (``pyro.infer.MCMC``).
         thin: keep every thin-th step (vectorized backend only).
+        progress: a progress bar of the kernel steps on stderr.
 
     Returns:
         ((n_chains x draws x q) unit-cube draws, kernel diagnostics).
@@ -113,9 +115,9 @@ def sample_surrogate_posterior(
     )
     with torch.no_grad():
         if backend == "vectorized":
-            draws = run_vectorized(kernel, num_samples, warmup_steps, thin)
+            draws = run_vectorized(kernel, num_samples, warmup_steps, thin, progress)
         elif backend == "pyro":
-            draws = run_pyro(kernel, num_samples, warmup_steps)
+            draws = run_pyro(kernel, num_samples, warmup_steps, progress)
         else:
             raise ValueError(f"backend: {backend!r}, expected 'vectorized' or 'pyro'")
     return draws, kernel.diagnostics()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -71,3 +73,30 @@ warmup = 200
 def study_writer():
     """:func:`write_study`, as a fixture (test modules cannot import each other)."""
     return write_study
+
+
+def calibrate_cli(config: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    """``python -m susp_bo calibrate CONFIG [extra]`` in a subprocess, output captured."""
+    return subprocess.run(
+        [sys.executable, "-m", "susp_bo", "calibrate", str(config), *extra],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=600,
+    )
+
+
+@pytest.fixture(scope="session")
+def calibrate_command():
+    """:func:`calibrate_cli`, as a fixture."""
+    return calibrate_cli
+
+
+@pytest.fixture(scope="session")
+def uninterrupted(fast_rig, fast_data, tmp_path_factory) -> Path:
+    """Results folder of the small study run once without interruption (2 worker processes)."""
+    folder = tmp_path_factory.mktemp("uninterrupted")
+    config = write_study(folder, fast_rig, fast_data, folder / "out")
+    done = calibrate_cli(config)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return folder / "out"

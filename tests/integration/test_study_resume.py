@@ -19,16 +19,6 @@ pytestmark = pytest.mark.slow
 VOLATILE = ("wall_time_s",)
 
 
-def _calibrate(config: Path, *extra: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "susp_bo", "calibrate", str(config), *extra],
-        capture_output=True,
-        text=True,
-        check=False,
-        timeout=600,
-    )
-
-
 def _stable(result_json: Path) -> dict:
     payload = json.loads(result_json.read_text())
     return {k: v for k, v in payload.items() if k not in VOLATILE}
@@ -50,16 +40,6 @@ def _recorded(store: Path) -> int:
         return len(_rows(store)) if store.exists() else 0
     except sqlite3.DatabaseError:
         return 0
-
-
-@pytest.fixture(scope="module")
-def uninterrupted(fast_rig, fast_data, study_writer, tmp_path_factory) -> Path:
-    """Results folder of the study run once without interruption (2 worker processes)."""
-    folder = tmp_path_factory.mktemp("uninterrupted")
-    config = study_writer(folder, fast_rig, fast_data, folder / "out")
-    done = _calibrate(config)
-    assert done.returncode == 0, done.stderr[-3000:]
-    return folder / "out"
 
 
 def test_uninterrupted_study_writes_the_results_folder(uninterrupted: Path) -> None:
@@ -86,7 +66,7 @@ def test_uninterrupted_study_writes_the_results_folder(uninterrupted: Path) -> N
 
 
 def test_kill_9_mid_batch_then_resume_gives_the_same_result(
-    uninterrupted: Path, fast_rig, fast_data, study_writer, tmp_path: Path
+    uninterrupted: Path, fast_rig, fast_data, study_writer, calibrate_command, tmp_path: Path
 ) -> None:
     out = tmp_path / "out"
     config = study_writer(tmp_path, fast_rig, fast_data, out)
@@ -113,11 +93,11 @@ def test_kill_9_mid_batch_then_resume_gives_the_same_result(
     assert 5 <= len(before) < 20
     assert not (out / "result.json").exists()
 
-    refused = _calibrate(config)
+    refused = calibrate_command(config)
     assert refused.returncode == 2
     assert "--resume" in refused.stderr
 
-    resumed = _calibrate(config, "--resume")
+    resumed = calibrate_command(config, "--resume")
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     assert _stable(out / "result.json") == _stable(uninterrupted / "result.json")
 
