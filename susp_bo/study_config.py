@@ -198,8 +198,10 @@ class OutputErrorConfig:
             object.__setattr__(self, "correlation_length_hz", float(self.correlation_length_hz))
         noise = self.sensor_noise_m_s2
         if noise is not None:
-            if isinstance(noise, bool) or not isinstance(noise, int | float) or not (
-                math.isfinite(noise) and noise >= 0.0
+            if (
+                isinstance(noise, bool)
+                or not isinstance(noise, int | float)
+                or not (math.isfinite(noise) and noise >= 0.0)
             ):
                 raise ValueError(
                     f"output_error.sensor_noise_m_s2: {noise!r} is not allowed; expected a "
