@@ -173,7 +173,7 @@ class CarbodyBending(Effect):
     """
 
     def apply(self, spec: Any, builder: Any, values: Mapping[str, float]) -> None:
-        from susp_bo.rig.assembly import Body
+        from susp_bo.rig.builder import Body
 
         length = values["length_m"]
         grid = np.linspace(-0.5 * length, 0.5 * length, 2001)
