@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,36 +42,6 @@ def plot_response(
     axes[-1, 1].set_xlabel("frequency (Hz)")
     axes[0, 0].set_title("accelerations")
     axes[0, 1].set_title("log-amplitude spectra, ln((m/s²)/√Hz)")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
-def plot_spectra_comparison(
-    frequencies_hz: Sequence[float],
-    channels: Sequence[str],
-    curves: dict[str, object],
-    path: Path,
-    title: str = "",
-) -> Path:
-    """Overlay spectra sets (label -> (C x F) array) channel by channel; save to ``path``."""
-    import numpy as np
-
-    n = len(channels)
-    cols = 2
-    rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(10, 2.2 * rows + 0.8), squeeze=False)
-    for index, channel in enumerate(channels):
-        ax = axes[index // cols, index % cols]
-        for label, values in curves.items():
-            ax.semilogx(frequencies_hz, np.asarray(values)[index], lw=1.0, label=label)
-        ax.set_title(channel, fontsize=8)
-        ax.set_xlabel("Hz", fontsize=7)
-    for index in range(n, rows * cols):
-        axes[index // cols, index % cols].axis("off")
-    axes[0, 0].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -25,7 +25,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import math
 import sys
 import time
 from concurrent.futures import Executor
@@ -46,6 +45,8 @@ from susp_bo.calibration.loop import (
 )
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
+from susp_bo.json_files import json_ready, write_json
+from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.store import EvaluationStore, study_fingerprint
 from susp_bo.study_config import StudyConfig
@@ -89,16 +90,15 @@ class PreparedStudy:
     reference: np.ndarray | None
 
     @property
+    def units(self) -> tuple[str, ...]:
+        """(q,) units of the calibrated parameters."""
+        unit = {c.name: c.unit for c in self.spec.calibration}
+        return tuple(unit[name] for name in self.names)
+
+    @property
     def frequencies_hz(self) -> np.ndarray:
         """(F,) the shared frequency grid."""
         return self.spec.spectrum.frequencies_hz()
-
-
-def _axle_span_m(spec: RigSpec) -> float:
-    values = spec.parameter_values()
-    pivot = values.get("bogie_half_pivot_spacing", 0.0)
-    wheelbase = values.get("bogie_half_wheelbase", 0.0)
-    return 2.0 * (pivot + wheelbase)
 
 
 def _output_error(
@@ -174,7 +174,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
                 run,
                 spec.channels,
                 spec.spectrum,
-                axle_span_m=_axle_span_m(spec),
+                axle_span_m=axle_span_m(spec),
                 source=f"{config.data}/run {index}",
             )
     except ValueError as error:
@@ -273,9 +273,7 @@ def result_payload(
     summary = result.summary.to_dict()
     payload: dict[str, Any] = {
         "parameters": list(study.names),
-        "units": [
-            next(c.unit for c in study.spec.calibration if c.name == name) for name in study.names
-        ],
+        "units": list(study.units),
         "bounds": [[float(lo), float(hi)] for lo, hi in study.bounds.T],
         "joint_map": summary["joint_map"],
         "marginal_map": summary["marginal_map"],
@@ -305,16 +303,6 @@ def result_payload(
         "version": __version__,
     }
     return payload
-
-
-def _json_clean(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_clean(v) for v in value]
-    return value
 
 
 def run_study(
@@ -374,10 +362,10 @@ def run_study(
             on_iteration=report,
         )
         n_simulations = store.count()
-    payload = _json_clean(
+    payload = json_ready(
         result_payload(study, result, n_simulations, time.perf_counter() - started)
     )
-    (out / RESULT_NAME).write_text(json.dumps(payload, indent=2) + "\n")
+    write_json(out / RESULT_NAME, payload)
     write_figures(study, result, out)
     log.info("result written: %s", out / RESULT_NAME)
     return payload, result
@@ -387,7 +375,6 @@ def write_figures(study: PreparedStudy, result: CalibrationResult, out: Path) ->
     """The paper's Fig. 1 and Fig. 2 and a pair plot, as PNG files in ``out``."""
     from susp_bo import plots
 
-    units = [next(c.unit for c in study.spec.calibration if c.name == n) for n in study.names]
     return plots.posterior_figures(
-        result.summary, result.samples, study.bounds, out, reference=study.reference, units=units
+        result.summary, result.samples, study.bounds, out, study.reference, study.units
     )

@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import json
-import logging
 import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from susp_bo.cli import UsageError
 
@@ -44,21 +41,3 @@ def output_folder(out: str | Path) -> Path:
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
     return folder
-
-
-def write_json(path: Path, payload: Mapping[str, Any]) -> None:
-    """Write ``payload`` as indented JSON (atomically: temp file then rename)."""
-    temporary = path.with_suffix(path.suffix + ".tmp")
-    temporary.write_text(json.dumps(payload, indent=2, allow_nan=False) + "\n")
-    temporary.replace(path)
-
-
-def file_logger(name: str, path: Path) -> logging.Logger:
-    """A logger writing to ``path`` (the run's log file) in addition to its parents."""
-    logger = logging.getLogger(f"susp_bo.run.{name}.{path}")
-    logger.setLevel(logging.INFO)
-    if not logger.handlers:
-        handler = logging.FileHandler(path)
-        handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
-        logger.addHandler(handler)
-    return logger

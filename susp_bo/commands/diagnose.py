@@ -35,7 +35,8 @@ from typing import Any
 import numpy as np
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, write_json
+from susp_bo.commands._common import output_folder
+from susp_bo.json_files import json_ready, write_json
 
 
 def _fit_from_result(study: Any, payload: dict[str, Any]) -> Any:
@@ -106,7 +107,7 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
         span = bounds[1] - bounds[0]
         sd = np.maximum(np.asarray(summary["sd"], dtype=np.float64), 1e-9 * span)
         (folder / "result.json").write_text(
-            json.dumps({"parameters": list(names), **_clean(summary)}, indent=2) + "\n"
+            json.dumps({"parameters": list(names), **json_ready(summary)}, indent=2) + "\n"
         )
         return Fit(
             spec=spec,
@@ -119,20 +120,6 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
         )
 
     return recalibrate
-
-
-def _clean(value: Any) -> Any:
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    if isinstance(value, np.floating | np.integer):
-        return _clean(value.item())
-    if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    return value
 
 
 def run_diagnose(args: argparse.Namespace) -> int:
@@ -191,7 +178,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     )
     document = report.to_dict()
     document.update(result_dir=str(result_dir), rig=study.spec.name)
-    write_json(out / "discrepancy.json", _clean(document))
+    write_json(out / "discrepancy.json", json_ready(document))
     write_figures(report, out)
     named = report.named_effect or "none (no significant disagreement explained)"
     print(

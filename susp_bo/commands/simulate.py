@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, read_parameter_file, write_json
+from susp_bo.commands._common import output_folder, read_parameter_file
+from susp_bo.json_files import write_json
 from susp_bo.rig.simulator import Rig, synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.track import SpeedProfile

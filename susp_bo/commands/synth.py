@@ -6,10 +6,11 @@ import argparse
 import sys
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, read_parameter_file, write_json
+from susp_bo.commands._common import output_folder, read_parameter_file
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.discrepancy.effects import with_effect
+from susp_bo.json_files import write_json
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.spec import load_rig_spec
 

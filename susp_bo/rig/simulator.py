@@ -33,7 +33,14 @@ from susp_bo.rig.world import VehicleWorld
 
 FloatArray = NDArray[np.float64]
 SpeedInput = float | SpeedProfile
-__all__ = ["Rig", "RigResponse", "SimulationFailed", "excitation_for_run", "synthetic_track"]
+__all__ = [
+    "Rig",
+    "RigResponse",
+    "SimulationFailed",
+    "axle_span_m",
+    "excitation_for_run",
+    "synthetic_track",
+]
 
 
 def _speed_profile(speed: SpeedInput, total_s: float) -> SpeedProfile:
@@ -85,6 +92,13 @@ def excitation_for_run(
     return excitation, per_sample
 
 
+def axle_span_m(spec: RigSpec) -> float:
+    """Distance from the rearmost to the leading axle (m): 2 (bogie pivot + wheelbase halves)."""
+    return 2.0 * (
+        spec.parameters["bogie_half_pivot_spacing"] + spec.parameters["bogie_half_wheelbase"]
+    )
+
+
 def synthetic_track(
     spec: RigSpec,
     seed: int,
@@ -96,10 +110,7 @@ def synthetic_track(
     sim = spec.simulation
     speed = sim.speed_m_s if speed_m_s is None else speed_m_s
     duration = sim.duration_s if duration_s is None else duration_s
-    span = 2.0 * (
-        spec.parameters["bogie_half_pivot_spacing"] + spec.parameters["bogie_half_wheelbase"]
-    )
-    length = speed * (sim.warm_up_s + duration) + span + 10.0
+    length = speed * (sim.warm_up_s + duration) + axle_span_m(spec) + 10.0
     return TrackGeometry.synthetic(quality=quality or sim.track_quality, length_m=length, seed=seed)
 
 
