@@ -101,6 +101,20 @@ def _single_threaded_worker() -> None:
         sys.modules["torch"].set_num_threads(1)
 
 
+_RESTART_TIMEOUT_S = 60.0
+
+
+def _kill_workers(pool: ProcessPoolExecutor) -> None:
+    """SIGKILL every live worker process of ``pool`` (CPython keeps them in ``_processes``)."""
+    try:
+        processes = list((getattr(pool, "_processes", None) or {}).values())
+    except RuntimeError:  # the manager thread changed the dict while it was copied
+        return
+    for process in processes:
+        if process.is_alive():
+            process.kill()
+
+
 class RestartableProcessPool(Executor):
     """A ``spawn`` process pool that can be replaced by a fresh one after a worker died.
 
@@ -126,8 +140,22 @@ class RestartableProcessPool(Executor):
         return self._pool.submit(fn, *args, **kwargs)
 
     def restart(self) -> None:
-        """Shut the (broken) pool down and start a fresh one."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        """Shut the (broken) pool down, killing its workers, and start a fresh one.
+
+        ``shutdown(wait=True)`` alone can hang forever on CPython 3.11: a worker the pool
+        spawned for a task submitted just as it broke escapes the pool's own terminate
+        and then waits on the call queue while the pool's manager thread joins it (seen
+        under load in the crash tests). So every worker still alive is killed, repeatedly,
+        until the manager thread has finished.
+        """
+        old = self._pool
+        old.shutdown(wait=False, cancel_futures=True)
+        manager = getattr(old, "_executor_manager_thread", None)
+        deadline = time.monotonic() + _RESTART_TIMEOUT_S
+        while manager is not None and manager.is_alive() and time.monotonic() < deadline:
+            _kill_workers(old)
+            manager.join(0.2)
+        _kill_workers(old)
         self._pool = self._new_pool()
         self.restarts += 1
 

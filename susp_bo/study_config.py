@@ -21,6 +21,7 @@ Example (also in notes/study_example.toml)::
     max_evaluations = 120   # likelihood evaluations (points w), design + EGO together
     initial_design = 40     # space-filling design size
     batch_size = 8          # EGO points per batch; match the workers
+    check_points = 8        # last evaluations: held-out check of the posterior's 95 % edges
 
     [seeds]
     calibration = 0         # design and EGO
@@ -31,9 +32,9 @@ Example (also in notes/study_example.toml)::
     # scheduler = "tcp://scheduler.example:8786"   # a Dask cluster instead of workers
 
     [mcmc]
-    chains = 64             # vectorised in one kernel step
-    draws = 1500            # kept steps per chain
-    warmup = 1000           # adaptive warm-up steps per chain
+    chains = 512            # vectorised in one kernel step
+    draws = 2000            # kept steps per chain
+    warmup = 500            # adaptive warm-up steps per chain
 
     [output_error]
     sigma = "estimate"      # or one σ for all channels, or a table {channel = σ}
@@ -80,17 +81,21 @@ class BudgetConfig:
             simulator run per measured track stretch), design and EGO together.
         initial_design: size of the space-filling design (≥ 2).
         batch_size: EGO points proposed per batch (fill the workers).
+        check_points: evaluations kept from the end of ``max_evaluations`` for the
+            held-out check of the surrogate posterior at its 95 % edges (0 = none).
     """
 
     section: ClassVar[str] = "budget"
     max_evaluations: int = 100
     initial_design: int = 40
     batch_size: int = 8
+    check_points: int = 8
 
     def __post_init__(self) -> None:
         _integer("budget.initial_design", self.initial_design, 2)
         _integer("budget.max_evaluations", self.max_evaluations, 2)
         _integer("budget.batch_size", self.batch_size, 1)
+        _integer("budget.check_points", self.check_points, 0)
         if self.max_evaluations < self.initial_design:
             raise ValueError(
                 f"budget.max_evaluations: {self.max_evaluations} is not allowed; expected >= "
@@ -150,9 +155,9 @@ class MCMCConfig:
     """
 
     section: ClassVar[str] = "mcmc"
-    chains: int = 64
-    draws: int = 1500
-    warmup: int = 1000
+    chains: int = 512
+    draws: int = 2000
+    warmup: int = 500
 
     def __post_init__(self) -> None:
         _integer("mcmc.chains", self.chains, 1)

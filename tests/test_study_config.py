@@ -53,10 +53,10 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         data=study_folder / "measured",
         out=study_folder / "results" / "trailer",
         parameters=("secondary_vertical_damping", "primary_vertical_stiffness"),
-        budget=BudgetConfig(max_evaluations=120, initial_design=40, batch_size=8),
+        budget=BudgetConfig(max_evaluations=120, initial_design=40, batch_size=8, check_points=8),
         seeds=SeedsConfig(calibration=0, mcmc=1),
         executor=ExecutorConfig(workers=8),
-        mcmc=MCMCConfig(chains=64, draws=1500, warmup=1000),
+        mcmc=MCMCConfig(chains=512, draws=2000, warmup=500),
         output_error=OutputErrorConfig(
             sigma="estimate", correlation_length_hz=0.5, sensor_noise_m_s2=0.005
         ),
@@ -144,7 +144,7 @@ BAD_EDITS = [
         "sigma = { carbody_vertical = 0 }",
         r"sigma\.carbody_vertical: 0 is not allowed",
     ),
-    ("warmup = 1000", "warmup = -5", r"mcmc\.warmup: -5 is not allowed"),
+    ("warmup = 500", "warmup = -5", r"mcmc\.warmup: -5 is not allowed"),
     (
         'data = "measured"',
         'data = "nowhere"',

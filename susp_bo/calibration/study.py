@@ -246,6 +246,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         batch_size=config.budget.batch_size,
         max_evaluations=config.budget.max_evaluations,
         initial_design_size=config.budget.initial_design,
+        check_points=config.budget.check_points,
         mcmc_chains=config.mcmc.chains,
         mcmc_warmup=config.mcmc.warmup,
         mcmc_samples=config.mcmc.draws,
@@ -287,6 +288,7 @@ def result_payload(
         "stop_reason": result.stop_reason,
         "best_log_likelihood": float(np.nanmax(result.y)),
         "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **result.mcmc},
+        "surrogate_check": None if result.check is None else result.check.to_dict(result.bounds),
         "reference": None if study.reference is None else study.reference.tolist(),
         "output_error": {
             "channels": list(study.spec.channels),
@@ -362,6 +364,17 @@ def run_study(
             on_iteration=report,
         )
         n_simulations = store.count()
+    if result.check is not None:
+        line = result.check.line()
+        if result.check.verdict != "ok":
+            line += (
+                " — the posterior may be misshapen; rerun with a larger budget"
+                " (susp-bo calibrate ... --resume --budget N: the design and the early"
+                " iterations come from the store, not the simulator)"
+            )
+        log.info(line)
+        if progress:
+            print(line, file=sys.stderr)
     payload = json_ready(
         result_payload(study, result, n_simulations, time.perf_counter() - started)
     )

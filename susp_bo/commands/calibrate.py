@@ -53,6 +53,7 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
                     max_evaluations=args.budget,
                     initial_design=min(budget.initial_design, args.budget),
                     batch_size=budget.batch_size,
+                    check_points=budget.check_points,
                 ),
             )
         if args.workers is not None or args.scheduler is not None:

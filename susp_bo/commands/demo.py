@@ -40,7 +40,7 @@ def demo_config(out: Path, smoke: bool, seed: int) -> StudyConfig:
             data=out / "data",
             out=out,
             parameters=("secondary_vertical_damping", "yaw_damper_damping"),
-            budget=BudgetConfig(max_evaluations=10, initial_design=6, batch_size=2),
+            budget=BudgetConfig(max_evaluations=10, initial_design=6, batch_size=2, check_points=2),
             mcmc=MCMCConfig(chains=8, draws=300, warmup=200),
         )
     return StudyConfig(

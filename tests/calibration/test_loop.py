@@ -45,6 +45,7 @@ def _small(seed: int = 0, **kw: object) -> CalibrationSettings:
             mcmc_warmup=100,
             mcmc_samples=100,
             candidate_count=64,
+            check_points=0,  # the held-out check has its own tests
         ),
         **kw,
     )

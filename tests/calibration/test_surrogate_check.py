@@ -1,0 +1,130 @@
+"""The held-out surrogate check: edge points, verdicts against known truths, loop wiring."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from susp_bo.calibration.loop import CalibrationSettings, calibrate
+from susp_bo.calibration.sampling import sample_surrogate_posterior, surrogate_log_likelihood
+from susp_bo.calibration.surrogate import SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate_check import SurrogateCheck, edge_points
+from susp_bo.calibration.test_functions import TARGETS
+
+
+def test_edge_points_sit_at_the_interval_ends_of_the_principal_directions() -> None:
+    gen = torch.Generator().manual_seed(0)
+    sd = torch.tensor([0.10, 0.02], dtype=torch.float64)  # widest direction first: axis 0
+    draws = 0.5 + sd * torch.randn((40_000, 2), generator=gen, dtype=torch.float64)
+    logd = -0.5 * (((draws - 0.5) / sd) ** 2).sum(1)
+    pts = edge_points(draws, logd, 4)
+    assert pts.shape == (4, 2)
+    assert len({tuple(p.tolist()) for p in pts}) == 4
+    z = 1.959964
+    np.testing.assert_allclose(
+        np.sort(pts[:2, 0].numpy()), [0.5 - z * 0.10, 0.5 + z * 0.10], atol=0.008
+    )
+    np.testing.assert_allclose(
+        np.sort(pts[2:, 1].numpy()), [0.5 - z * 0.02, 0.5 + z * 0.02], atol=0.002
+    )
+    # among the draws near each quantile the ridge point (highest density) is chosen
+    assert torch.all(pts[:2, 1].sub(0.5).abs() < 0.005)
+    assert edge_points(draws, logd, 3).shape == (3, 2)
+    with pytest.raises(ValueError, match="n: 0"):
+        edge_points(draws, logd, 0)
+
+
+def _bowl(sd: float) -> callable:
+    return lambda u: -0.5 * np.sum(((u - 0.5) / sd) ** 2, axis=1)
+
+
+@pytest.mark.parametrize(
+    ("true_sd", "verdict"),
+    [(0.10, "ok"), (0.16, "overconfident"), (0.06, "underconfident")],
+)
+def test_verdict_against_a_known_truth(true_sd: float, verdict: str) -> None:
+    """A surrogate of a bowl of sd 0.1, checked against a wider, equal or narrower truth."""
+    rng = np.random.default_rng(0)
+    x = rng.uniform(0.0, 1.0, (60, 2))
+    surrogate = fit_surrogate(x, _bowl(0.10)(x), SurrogateSettings(), seed=0)
+    draws, _ = sample_surrogate_posterior(
+        surrogate, n_chains=32, warmup_steps=300, num_samples=200, seed=1
+    )
+    post = draws.reshape(-1, 2)
+    u = edge_points(post, surrogate_log_likelihood(surrogate)(post), 4)
+    mean, sd = surrogate.log_likelihood_uncertainty(u)
+    check = SurrogateCheck(u.numpy(), mean.numpy(), sd.numpy(), _bowl(true_sd)(u.numpy()), 1.0)
+    assert check.verdict == verdict, check.errors
+    if verdict == "ok":
+        assert check.max_abs_error < 0.3
+
+
+def test_failed_runs_are_ignored_by_the_verdict() -> None:
+    check = SurrogateCheck(
+        np.zeros((3, 1)),
+        np.zeros(3),
+        np.ones(3),
+        np.array([math.nan, 0.5, -0.2]),
+        tolerance_nats=1.0,
+    )
+    assert check.verdict == "ok" and check.max_abs_error == pytest.approx(0.5)
+    check = SurrogateCheck(np.zeros((2, 1)), np.zeros(2), np.ones(2), np.array([2.0, -3.0]), 1.0)
+    assert check.verdict == "underconfident"
+    all_failed = SurrogateCheck(np.zeros((1, 1)), np.zeros(1), np.ones(1), np.full(1, math.nan), 1)
+    assert all_failed.verdict == "ok" and math.isnan(all_failed.max_abs_error)
+
+
+def _settings(**kw: object) -> CalibrationSettings:
+    base = dict(
+        max_evaluations=30,
+        batch_size=4,
+        mcmc_chains=8,
+        mcmc_warmup=100,
+        mcmc_samples=100,
+        candidate_count=128,
+        check_points=4,
+    )
+    base.update(kw)
+    return CalibrationSettings(**base)  # type: ignore[arg-type]
+
+
+def test_calibrate_spends_the_last_evaluations_on_the_check() -> None:
+    target = TARGETS["banana_2d"]()
+    seen: list[int] = []
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        seen.append(w.shape[0])
+        return target.log_likelihood(w)
+
+    result = calibrate(evaluate, target.bounds, target.names, _settings(), progress=False)
+    assert result.n_evaluations == 30 and seen[-1] == 4
+    assert result.history[-1].phase == "check"
+    check = result.check
+    assert check is not None and check.points_unit.shape == (4, 2)
+    np.testing.assert_allclose(check.observed, result.y[-4:])
+    lo, hi = target.bounds
+    np.testing.assert_allclose(lo + check.points_unit * (hi - lo), result.X[-4:])
+    d = result.to_dict()["surrogate_check"]
+    assert d["verdict"] == check.verdict and len(d["points"]) == 4
+    # the check points are in the final surrogate's data
+    assert result.surrogate.train_x.shape[0] == 30
+
+
+def test_no_check_when_switched_off() -> None:
+    target = TARGETS["banana_2d"]()
+    result = calibrate(
+        target, target.bounds, target.names, _settings(check_points=0), progress=False
+    )
+    assert result.check is None and result.to_dict()["surrogate_check"] is None
+    assert all(h.phase != "check" for h in result.history)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"), [("check_points", -1), ("check_points", 1.5), ("check_tolerance", 0.0)]
+)
+def test_bad_check_settings_are_refused(field: str, value: float) -> None:
+    with pytest.raises(ValueError, match=field):
+        _settings(**{field: value})
