@@ -58,7 +58,7 @@ _EXPORTS: dict[str, str] = {
     "OutputError": "susp_bo.calibration.likelihood",
     "log_likelihood": "susp_bo.calibration.likelihood",
     "estimate_output_error": "susp_bo.calibration.likelihood",
-    "CalibrationSettings": "susp_bo.calibration.loop",
+    "CalibrationSettings": "susp_bo.calibration.settings",
     "CalibrationResult": "susp_bo.calibration.loop",
     "calibrate": "susp_bo.calibration.loop",
     "PosteriorSummary": "susp_bo.calibration.posterior",
@@ -110,8 +110,9 @@ __all__ = [
 
 if TYPE_CHECKING:  # pragma: no cover - static names for type checkers and IDEs
     from susp_bo.calibration.likelihood import OutputError, estimate_output_error, log_likelihood
-    from susp_bo.calibration.loop import CalibrationResult, CalibrationSettings, calibrate
+    from susp_bo.calibration.loop import CalibrationResult, calibrate
     from susp_bo.calibration.posterior import PosteriorSummary
+    from susp_bo.calibration.settings import CalibrationSettings
     from susp_bo.calibration.study import run_study
     from susp_bo.data.measured import MeasuredDataError, MeasuredRun, load_run, load_runs, save_run
     from susp_bo.data.synthetic import synthesize_runs

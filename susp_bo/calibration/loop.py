@@ -31,7 +31,7 @@ import math
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -40,7 +40,6 @@ from tqdm.auto import tqdm
 
 from susp_bo.calibration.acquisition import propose_ei_batch, select_uncertainty_batch
 from susp_bo.calibration.design import (
-    DesignMethod,
     check_bounds,
     default_design_size,
     from_unit,
@@ -49,12 +48,11 @@ from susp_bo.calibration.design import (
 )
 from susp_bo.calibration.posterior import PosteriorSummary, summarize
 from susp_bo.calibration.sampling import (
-    Backend,
-    Estimator,
     sample_surrogate_posterior,
     surrogate_log_likelihood,
 )
-from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings, fit_surrogate
+from susp_bo.calibration.settings import CalibrationSettings
+from susp_bo.calibration.surrogate import Surrogate, fit_surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck, edge_points
 
 logger = logging.getLogger(__name__)
@@ -63,108 +61,6 @@ Evaluate = Callable[[np.ndarray], np.ndarray]
 Phase = Literal["design", "ego", "refine", "check"]
 _FINAL = 1_000_000  # iteration index used to seed the final fit and MCMC
 _CHECK = 2_000_000  # iteration index used to seed the surrogate check
-
-
-@dataclass(frozen=True)
-class CalibrationSettings:
-    """Settings of :func:`calibrate` (defaults suit q ≈ 2–10).
-
-    Args:
-        seed: master seed (design, surrogate fits, acquisition, refinement).
-        mcmc_seed: seed of the final MCMC; None derives it from ``seed``. A different
-            value re-draws the posterior on the same surrogate (a cheap check of
-            Monte Carlo error) without changing any simulator evaluation.
-        batch_size: points proposed per iteration (parallel simulator calls), >= 1.
-        max_evaluations: budget of log L evaluations, design included; None = 50 (q + 2).
-        initial_design_size: design size; None = max(10, 5 q).
-        design_method: "sobol" or "lhs".
-        surrogate: GP settings (output warping etc.).
-        ei_tolerance: EGO stops when batch EI / sd(latent log L) < this (> 0).
-        max_ego_fraction: share of the post-design budget EGO may use, in [0, 1].
-        refine: run the posterior-refinement phase after EGO.
-        refine_tolerance: refinement stops when the posterior mean of sd[log L̃] < this (nats).
-        estimator: L̃ used by MCMC: "plug_in", "mean_log" or "expected" (paper's E[L̃]).
-        check_points: evaluations kept from the end of the budget for the held-out check
-            of the surrogate posterior at its 95 % edges (:mod:`surrogate_check`), >= 0;
-            they join the data before the final fit. 0 = no check.
-        check_tolerance: largest |log L − predicted| (nats) the check calls "ok" (> 0).
-        mcmc_chains: chains of the final MCMC (vectorised in one kernel step). The
-            default 512 x 2000 draws (1 M) brings the Monte Carlo error of the marginals
-            (MMTV of the sampler alone on the exact 7-D Gaussian) from 0.015 with 64 x 1500
-            down to 0.005; a few seconds on the surrogate, which is cheap.
-        mcmc_warmup: warm-up (adaptation) steps per chain (pooled over chains, so
-            many chains need few steps).
-        mcmc_samples: kept steps per chain.
-        mcmc_backend: "vectorized" (plain torch loop) or "pyro" (pyro.infer.MCMC); same draws.
-        candidate_count: posterior candidates scored per refinement batch (and as many widened).
-        acquisition_restarts: restarts of the qLogEI optimisation.
-        acquisition_raw_samples: raw samples for the qLogEI restarts.
-        num_threads: torch intra-op threads for the surrogate, acquisition and MCMC work
-            (restored afterwards, never around ``evaluate``); None leaves torch's setting.
-            The default 1 is fastest for these small matrices, by far on a shared machine.
-    """
-
-    seed: int = 0
-    mcmc_seed: int | None = None
-    batch_size: int = 4
-    max_evaluations: int | None = None
-    initial_design_size: int | None = None
-    design_method: DesignMethod = "sobol"
-    surrogate: SurrogateSettings = field(default_factory=SurrogateSettings)
-    ei_tolerance: float = 1e-3
-    max_ego_fraction: float = 0.4
-    refine: bool = True
-    refine_tolerance: float = 0.02
-    check_points: int = 8
-    check_tolerance: float = 1.0
-    estimator: Estimator = "plug_in"
-    mcmc_chains: int = 512
-    mcmc_warmup: int = 500
-    mcmc_samples: int = 2000
-    mcmc_backend: Backend = "vectorized"
-    candidate_count: int = 512
-    acquisition_restarts: int = 6
-    acquisition_raw_samples: int = 256
-    num_threads: int | None = 1
-
-    def __post_init__(self) -> None:
-        positive = {
-            "batch_size": self.batch_size,
-            "mcmc_chains": self.mcmc_chains,
-            "mcmc_samples": self.mcmc_samples,
-            "candidate_count": self.candidate_count,
-            "acquisition_restarts": self.acquisition_restarts,
-            "acquisition_raw_samples": self.acquisition_raw_samples,
-        }
-        for name, value in positive.items():
-            if int(value) != value or value < 1:
-                raise ValueError(f"{name}: {value} must be an integer >= 1")
-        for name in ("max_evaluations", "initial_design_size"):
-            v = getattr(self, name)
-            if v is not None and (int(v) != v or v < 2):
-                raise ValueError(f"{name}: {v} must be None or an integer >= 2")
-        if self.num_threads is not None and (
-            int(self.num_threads) != self.num_threads or self.num_threads < 1
-        ):
-            raise ValueError(f"num_threads: {self.num_threads} must be None or an integer >= 1")
-        if int(self.check_points) != self.check_points or self.check_points < 0:
-            raise ValueError(f"check_points: {self.check_points} must be an integer >= 0")
-        if not self.check_tolerance > 0.0:
-            raise ValueError(f"check_tolerance: {self.check_tolerance} must be > 0 nats")
-        if self.mcmc_warmup < 0:
-            raise ValueError(f"mcmc_warmup: {self.mcmc_warmup} must be >= 0")
-        if not self.ei_tolerance > 0.0:
-            raise ValueError(f"ei_tolerance: {self.ei_tolerance} must be > 0")
-        if not self.refine_tolerance > 0.0:
-            raise ValueError(f"refine_tolerance: {self.refine_tolerance} must be > 0 nats")
-        if not 0.0 <= self.max_ego_fraction <= 1.0:
-            raise ValueError(f"max_ego_fraction: {self.max_ego_fraction} must be in [0, 1]")
-        if self.design_method not in ("sobol", "lhs"):
-            raise ValueError(f"design_method: {self.design_method!r}, expected 'sobol' or 'lhs'")
-        if self.estimator not in ("plug_in", "mean_log", "expected"):
-            raise ValueError(f"estimator: {self.estimator!r}, expected plug_in/mean_log/expected")
-        if self.mcmc_backend not in ("vectorized", "pyro"):
-            raise ValueError(f"mcmc_backend: {self.mcmc_backend!r}, expected vectorized/pyro")
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ from gpytorch.priors import GammaPrior
 logger = logging.getLogger(__name__)
 
 Transform = Literal["auto", "log_deficit", "none"]
-MeanKind = Literal["quadratic", "constant"]
+MeanKind = Literal["auto", "quadratic", "constant"]
 _SQRT5 = math.sqrt(5.0)
 
 
@@ -87,8 +87,8 @@ class SurrogateSettings:
             raise ValueError(f"transform: {self.transform!r}, expected auto/log_deficit/none")
         if self.deficit_scale is not None and not self.deficit_scale > 0.0:
             raise ValueError(f"deficit_scale: {self.deficit_scale} must be None or > 0 nats")
-        if self.mean not in ("quadratic", "constant"):
-            raise ValueError(f"mean: {self.mean!r}, expected 'quadratic' or 'constant'")
+        if self.mean not in ("auto", "quadratic", "constant"):
+            raise ValueError(f"mean: {self.mean!r}, expected 'auto', 'quadratic' or 'constant'")
         if not self.noise_variance >= 1e-6:
             raise ValueError(f"noise_variance: {self.noise_variance} must be >= 1e-6")
 
@@ -294,7 +294,8 @@ def fit_surrogate(
 ) -> Surrogate:
     """Fits the GP to (unit-cube inputs, log L) and returns the surrogate.
 
-    With ``transform="auto"`` both warpings are fitted and the one with the higher
+    With ``transform="auto"`` both warpings (with ``mean="auto"`` both prior means) are
+    fitted and the one with the higher
     :meth:`Surrogate.loo_log_score` is returned.
 
     Args:
@@ -306,14 +307,17 @@ def fit_surrogate(
     Returns:
         The fitted :class:`Surrogate`.
     """
-    if settings.transform != "auto":
+    transforms = ("none", "log_deficit") if settings.transform == "auto" else (settings.transform,)
+    means = ("constant", "quadratic") if settings.mean == "auto" else (settings.mean,)
+    if len(transforms) * len(means) == 1:
         return _fit_one(x_unit, y, settings, seed)
     fits = [
-        _fit_one(x_unit, y, replace(settings, transform=kind), seed)
-        for kind in ("none", "log_deficit")
+        _fit_one(x_unit, y, replace(settings, transform=t, mean=m), seed)
+        for t in transforms
+        for m in means
     ]
     scores = [f.loo_log_score() for f in fits]
-    logger.debug("surrogate LOO scores none %.4g, log_deficit %.4g", *scores)
+    logger.debug("surrogate LOO scores %s", scores)
     return fits[int(np.argmax(scores))]
 
 

@@ -128,23 +128,6 @@ def test_stopping_rule_before_budget() -> None:
     assert result.stop_reason == "converged" and result.n_evaluations < 120
 
 
-@pytest.mark.parametrize(
-    ("field", "value"),
-    [
-        ("batch_size", 0),
-        ("max_evaluations", 1),
-        ("ei_tolerance", 0.0),
-        ("estimator", "max"),
-        ("max_ego_fraction", 1.5),
-        ("mcmc_backend", "numpyro"),
-        ("num_threads", 0),
-    ],
-)
-def test_settings_validation_names_the_field(field: str, value: object) -> None:
-    with pytest.raises(ValueError, match=field):
-        CalibrationSettings(**{field: value})
-
-
 def test_bad_evaluate_output_and_names() -> None:
     target = TARGETS["banana_2d"]()
     with pytest.raises(ValueError, match="evaluate"):

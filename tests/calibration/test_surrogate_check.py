@@ -120,11 +120,3 @@ def test_no_check_when_switched_off() -> None:
     )
     assert result.check is None and result.to_dict()["surrogate_check"] is None
     assert all(h.phase != "check" for h in result.history)
-
-
-@pytest.mark.parametrize(
-    ("field", "value"), [("check_points", -1), ("check_points", 1.5), ("check_tolerance", 0.0)]
-)
-def test_bad_check_settings_are_refused(field: str, value: float) -> None:
-    with pytest.raises(ValueError, match=field):
-        _settings(**{field: value})
