@@ -97,7 +97,7 @@ def test_auto_picks_the_better_loo_score(data) -> None:
     fits = {
         k: fit_surrogate(x, y, SurrogateSettings(transform=k), 0) for k in ("none", "log_deficit")
     }
-    auto = fit_surrogate(x, y, SurrogateSettings(), 0)
+    auto = fit_surrogate(x, y, SurrogateSettings(transform="auto"), 0)
     best = max(fits, key=lambda k: fits[k].loo_log_score())
     assert auto.warping.kind == best
 
@@ -109,5 +109,24 @@ def test_settings_validation() -> None:
         SurrogateSettings(deficit_scale=0.0)
     with pytest.raises(ValueError, match="noise_variance"):
         SurrogateSettings(noise_variance=0.0)
+    with pytest.raises(ValueError, match="mean: 'linear'"):
+        SurrogateSettings(mean="linear")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="finite"):
         fit_surrogate(np.zeros((3, 2)), np.array([0.0, np.nan, 1.0]), SurrogateSettings(), 0)
+
+
+def test_auto_mean_keeps_the_better_leave_one_out_fit() -> None:
+    """On an exact quadratic bowl the negative-quadratic prior mean wins, and auto keeps it."""
+    from susp_bo.calibration.surrogate import NegativeQuadraticMean
+
+    rng = np.random.default_rng(3)
+    x = rng.uniform(0.0, 1.0, (30, 2))
+    y = -0.5 * np.sum(((x - 0.4) / 0.2) ** 2, axis=1)
+    fits = {
+        m: fit_surrogate(x, y, SurrogateSettings(mean=m), seed=0) for m in ("constant", "quadratic")
+    }
+    scores = {m: f.loo_log_score() for m, f in fits.items()}
+    assert scores["quadratic"] > scores["constant"]
+    auto = fit_surrogate(x, y, SurrogateSettings(mean="auto"), seed=0)
+    assert isinstance(auto.model.mean_module, NegativeQuadraticMean)
+    assert auto.loo_log_score() == pytest.approx(scores["quadratic"])
