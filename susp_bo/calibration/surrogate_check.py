@@ -34,7 +34,9 @@ import numpy as np
 import torch
 
 Verdict = Literal["ok", "overconfident", "underconfident"]
-_EDGE_QUANTILES = (0.025, 0.975)
+_EDGE_QUANTILES = (0.025, 0.16, 0.3)
+"""Lower quantiles of the successive rounds over the q directions (upper = 1 − lower):
+the 95 % interval's ends first, then ±1 sd, then inner points when n > 2 q."""
 _WINDOW = 0.05  # half-width of the projection window at a quantile, in projected sd
 
 
@@ -104,10 +106,11 @@ def edge_points(draws: torch.Tensor, log_density: torch.Tensor, n: int) -> torch
         draws: (m x q) posterior draws (unit cube).
         log_density: (m,) surrogate log density of the draws (picks the ridge point).
         n: number of points wanted (>= 1); pairs of ends along the first ⌈n/2⌉
-            directions, largest variance first (an odd n drops the last upper end).
+            directions, largest variance first (an odd n drops the last upper end);
+            beyond 2 q points further rounds use the 16/84 % and then 30/70 % quantiles.
 
     Returns:
-        (n x q) distinct draws at the 2.5 % / 97.5 % projected quantiles (within
+        (n x q) distinct draws at the projected quantiles (within
         0.05 projected sd; the one of highest ``log_density`` there).
     """
     if n < 1:
@@ -119,16 +122,20 @@ def edge_points(draws: torch.Tensor, log_density: torch.Tensor, n: int) -> torch
     eigval, eigvec = torch.linalg.eigh(cov)
     order = torch.argsort(eigval, descending=True)
     chosen: list[int] = []
+    taken = torch.zeros(m, dtype=torch.bool)  # draws equal to a chosen one (MH repeats draws)
     for k in range(math.ceil(n / 2)):
         proj = centred @ eigvec[:, order[k % q]]
         window = _WINDOW * proj.std()
-        for qt in _EDGE_QUANTILES:
+        lower = _EDGE_QUANTILES[min(k // q, len(_EDGE_QUANTILES) - 1)]
+        for qt in (lower, 1.0 - lower):
             if len(chosen) == n:
                 break
             distance = (proj - torch.quantile(proj, qt)).abs()
-            distance[chosen] = math.inf
+            distance[taken] = math.inf
             near = torch.nonzero(distance <= window).reshape(-1)
             if near.numel() == 0:
                 near = torch.argmin(distance).reshape(1)
-            chosen.append(int(near[torch.argmax(log_density[near])]))
+            pick = int(near[torch.argmax(log_density[near])])
+            chosen.append(pick)
+            taken |= torch.all(x == x[pick], dim=1)
     return x[chosen]

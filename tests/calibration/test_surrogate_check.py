@@ -120,3 +120,14 @@ def test_no_check_when_switched_off() -> None:
     )
     assert result.check is None and result.to_dict()["surrogate_check"] is None
     assert all(h.phase != "check" for h in result.history)
+
+
+def test_edge_points_are_distinct_when_draws_repeat_and_rounds_go_inward() -> None:
+    """MH repeats a draw on every rejection; more points than 2 q take inner quantiles."""
+    gen = torch.Generator().manual_seed(1)
+    draws = (0.5 + 0.1 * torch.randn((5_000, 2), generator=gen, dtype=torch.float64)).repeat(3, 1)
+    logd = -0.5 * (((draws - 0.5) / 0.1) ** 2).sum(1)
+    pts = edge_points(draws, logd, 8)
+    assert len({tuple(p.tolist()) for p in pts}) == 8
+    radius = (pts - 0.5).norm(dim=1) / 0.1
+    assert torch.all(radius[:4] > 1.7) and torch.all(radius[4:] < 1.3)  # 2.5 % ends, then ±1 sd
