@@ -8,8 +8,9 @@ known) and each budget, this script runs in the same process:
 - ``susp_bo-auto``: the same with ``transform="auto"`` (warping chosen by leave-one-out
   at each refit) — with the next one, the measurement behind the dynamic-range choice;
 - ``susp_bo-logdef``: the same with ``transform="log_deficit"`` always;
-- ``susp_bo-automean``: the same with ``SurrogateSettings(mean="auto")`` (constant or
-  negative-quadratic prior mean by leave-one-out at each refit);
+- ``susp_bo-constmean``: the same with ``SurrogateSettings(mean="constant")`` (the
+  default "auto" picks the constant or the negative-quadratic prior mean by leave-one-out
+  at each refit);
 - ``susp_bo-ego``: EGO only (no posterior refinement), i.e. the paper's method
   made batch-parallel;
 - ``pyvbmc``: PyVBMC (Acerbi's VBMC) at ``max_fun_evals`` = the same budget, on the
@@ -37,19 +38,20 @@ of the budget the MMTV of one run varies by 3x between seeds for every method):
     python benchmarks/posterior_accuracy.py --methods susp_bo pyvbmc --seeds 0 1 2
 
 Measured (session 2, mean MMTV over seeds 0–2; BOLFI seed 0 only, from its own venv)
-at 25 / 50 / 100 % of 50 (q + 2) evaluations. ``susp_bo-automean`` rows with the code
-as committed; ``susp_bo`` (constant mean, the default) rows from earlier in the session
-(same loop, the 7-D Gaussian rows before the surrogate check existed; oscillator not
-rerun); PyVBMC 1.5.0 rows do not depend on this code:
+at 25 / 50 / 100 % of 50 (q + 2) evaluations. ``susp_bo`` = the default (prior mean
+"auto"; measured with a least-squares start by ``torch.linalg.lstsq``, since replaced by
+the normal equations for reproducibility); ``constant`` = ``mean="constant"`` earlier in
+the session (7-D Gaussian rows before the surrogate check existed; oscillator not run);
+PyVBMC 1.5.0 rows do not depend on this code:
 
-    target                  susp_bo          susp_bo-automean   pyvbmc             bolfi
+    target                  constant         susp_bo            pyvbmc             bolfi
     banana_2d               .044/.008/.006   .021/.009/.006     .043/.027/.031     .15/.14/.14
     correlated_gaussian_7d  .023/.010/.007   .024/.009/.007     .045/.010/.008     .69/.66/.29
     weakly_identified_7d    .022/.006/.006   .009/.006/.006     .032/.017/.024     .15/.06/.06
     oscillator_2d           —                .011/.007/.006     .010/.008/.009     .40/.12/.13
 
-Oscillator at 50 evaluations over 10 seeds (automean) vs 9 (PyVBMC): mean .0110 vs
-.0106, median .0091 vs .0102 — a tie. Every other cell of automean is below PyVBMC and
+Oscillator at 50 evaluations over 10 seeds (susp_bo) vs 9 (PyVBMC): mean .0110 vs
+.0106, median .0091 vs .0102 — a tie. Every other cell of susp_bo is below PyVBMC and
 BOLFI; the constant mean ties PyVBMC on the banana at 50 and the Gaussian at 225.
 """
 
@@ -225,7 +227,9 @@ def main(argv: list[str] | None = None) -> int:
             replace(base, surrogate=SurrogateSettings(transform="log_deficit"))
         ),
         "susp_bo-ego": run_susp_bo(replace(base, refine=False, max_ego_fraction=1.0)),
-        "susp_bo-automean": run_susp_bo(replace(base, surrogate=SurrogateSettings(mean="auto"))),
+        "susp_bo-constmean": run_susp_bo(
+            replace(base, surrogate=SurrogateSettings(mean="constant"))
+        ),
         "pyvbmc": run_pyvbmc,
         "bolfi": run_bolfi,
     }

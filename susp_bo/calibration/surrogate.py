@@ -11,12 +11,12 @@ negative quadratic trend m(u) = m0 − ½ Σ ((u_k − c_k)/ω_k)² of
 :class:`NegativeQuadraticMean` (as VBMC uses), whose centre and widths are fitted
 with the other hyperparameters, so that the GP only models the departure of log L
 from a Gaussian bowl and extrapolates downhill instead of back to a constant.
-``"auto"`` fits both at every refit and keeps the higher leave-one-out score
-(below). It is not the default: under CPU load two fits of the same data with the
-quadratic mean were seen to differ (CI, session 2), which breaks the bit-for-bit
-reproducibility that resumed and cluster studies rely on; the cause is not found yet.
-Measured (``python benchmarks/posterior_accuracy.py --seeds 0 1 2``; mean
-MMTV over 3 seeds, batches of 8, 1 M final draws): the quadratic mean wins with few
+The default ``"auto"`` fits both at every refit and keeps the higher leave-one-out
+score (below). (The quadratic mean's least-squares start solves the normal
+equations: ``torch.linalg.lstsq`` gave run-to-run differences under CPU load, which
+broke the seed-for-seed reproducibility that resumed and cluster studies rely on.)
+Measured (``python benchmarks/posterior_accuracy.py --seeds 0 1 2``; mean MMTV over
+3 seeds, batches of 8, 1 M final draws): the quadratic mean wins with few
 evaluations, the constant one with more, and ``"auto"`` follows the better one
 except on the banana at 100/200 evaluations — banana 2-D at 50: constant 0.045,
 auto 0.023 (6 seeds); 7-D Gaussian at 112: 0.019 vs 0.015; 7-D weak direction at
@@ -90,15 +90,15 @@ class SurrogateSettings:
         deficit_scale: s of the log-deficit transform in nats (> 0); None means q.
         noise_variance: fixed observation noise in standardised units (>= 1e-6, GPyTorch's
             floor).
-        mean: GP prior mean: "constant" (default), "quadratic" (negative quadratic trend,
-            :class:`NegativeQuadraticMean`) or "auto" (both fitted at every refit, the
-            better leave-one-out score kept; see the module docstring).
+        mean: GP prior mean: "constant", "quadratic" (negative quadratic trend,
+            :class:`NegativeQuadraticMean`) or "auto" (default: both fitted at every refit,
+            the better leave-one-out score kept; see the module docstring).
     """
 
     transform: Transform = "none"
     deficit_scale: float | None = None
     noise_variance: float = 1e-6
-    mean: MeanKind = "constant"
+    mean: MeanKind = "auto"
 
     def __post_init__(self) -> None:
         if self.transform not in ("auto", "log_deficit", "none"):
@@ -336,7 +336,11 @@ def _initial_quadratic_mean(x: torch.Tensor, z: torch.Tensor) -> NegativeQuadrat
     if n < 2 * q + 2:
         return mean
     features = torch.cat([torch.ones(n, 1, dtype=x.dtype), x, x**2], dim=1)
-    coef = torch.linalg.lstsq(features, z[:, None]).solution[:, 0]
+    # normal equations, not torch.linalg.lstsq: its LAPACK driver gave run-to-run
+    # differences under CPU load, which broke seed-for-seed reproducibility
+    gram = features.T @ features
+    ridge = 1e-10 * torch.trace(gram) * torch.eye(gram.shape[0], dtype=x.dtype)
+    coef = torch.linalg.solve(gram + ridge, features.T @ z)
     b1, b2 = coef[1 : q + 1], coef[q + 1 :]
     concave = b2 < -1e-9
     safe_b2 = torch.where(concave, b2, torch.full_like(b2, -1.0))
