@@ -151,11 +151,26 @@ def torch_threads(n: int | None) -> Iterator[None]:
         torch.set_num_threads(previous)
 
 
-def _report(
-    report: IterationReport,
+def _record(
+    iteration: int,
+    phase: Phase,
+    x: np.ndarray,
+    y: np.ndarray,
+    criterion: float,
     history: list[IterationReport],
     on_iteration: Callable[[IterationReport], None] | None,
 ) -> None:
+    """Appends the report of the batch just evaluated to ``history``, logs it, calls back."""
+    best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
+    report = IterationReport(
+        iteration,
+        phase,
+        x.shape[0],
+        float(y[best]),
+        x[best].copy(),
+        criterion,
+        int(np.sum(~np.isfinite(y))),
+    )
     history.append(report)
     logger.info(report.line())
     if on_iteration is not None:
@@ -206,6 +221,15 @@ def _refinement_candidates(
     return torch.cat([post, wide]), post.shape[0]
 
 
+def _fit(
+    x: np.ndarray, y: np.ndarray, bounds: np.ndarray, settings: CalibrationSettings, iteration: int
+) -> Surrogate:
+    """The surrogate of all evaluations so far (failures imputed), seeded by ``iteration``."""
+    return fit_surrogate(
+        to_unit(x, bounds), _impute(y), settings.surrogate, _seed(settings.seed, iteration, 1)
+    )
+
+
 @dataclass(frozen=True)
 class _Step:
     phase: Phase
@@ -226,9 +250,7 @@ def _propose(
 ) -> _Step:
     """Refits the surrogate and proposes the next batch (None when a stopping rule fires)."""
     seed = settings.seed
-    surrogate = fit_surrogate(
-        to_unit(x, bounds), _impute(y), settings.surrogate, _seed(seed, iteration, 1)
-    )
+    surrogate = _fit(x, y, bounds, settings, iteration)
     if phase == "ego":
         u, criterion = propose_ei_batch(
             surrogate,
@@ -253,9 +275,7 @@ def _propose_check(
     x: np.ndarray, y: np.ndarray, bounds: np.ndarray, size: int, settings: CalibrationSettings
 ) -> tuple[torch.Tensor, np.ndarray, np.ndarray]:
     """Edge points of the current surrogate posterior and the surrogate's predictions there."""
-    surrogate = fit_surrogate(
-        to_unit(x, bounds), _impute(y), settings.surrogate, _seed(settings.seed, _CHECK, 1)
-    )
+    surrogate = _fit(x, y, bounds, settings, _CHECK)
     candidates, n_post = _refinement_candidates(
         surrogate, settings, _seed(settings.seed, _CHECK, 3)
     )
@@ -318,17 +338,7 @@ def calibrate(
         y_new = _evaluate(evaluate, w_new)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(size)
-        best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
-        report = IterationReport(
-            iteration,
-            phase,
-            x.shape[0],
-            float(y[best]),
-            x[best].copy(),
-            step.criterion,
-            int(np.sum(~np.isfinite(y))),
-        )
-        _report(report, history, on_iteration)
+        _record(iteration, phase, x, y, step.criterion, history, on_iteration)
     check = None
     if n_check > 0:
         with torch_threads(settings.num_threads):
@@ -338,23 +348,11 @@ def calibrate(
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(n_check)
-        best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
-        report = IterationReport(
-            iteration + 1,
-            "check",
-            x.shape[0],
-            float(y[best]),
-            x[best].copy(),
-            check.max_abs_error,
-            int(np.sum(~np.isfinite(y))),
-        )
-        _report(report, history, on_iteration)
+        _record(iteration + 1, "check", x, y, check.max_abs_error, history, on_iteration)
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
     with torch_threads(settings.num_threads):
-        surrogate = fit_surrogate(
-            to_unit(x, b), _impute(y), settings.surrogate, _seed(settings.seed, _FINAL, 1)
-        )
+        surrogate = _fit(x, y, b, settings, _FINAL)
         draws_u, diag = sample_surrogate_posterior(
             surrogate,
             n_chains=settings.mcmc_chains,
