@@ -29,7 +29,21 @@ from typing import Any
 import numpy as np
 
 from susp_bo.calibration.posterior import PosteriorSummary
-from susp_bo.posterior_plots.common import acceptable_bands, save, verdict_title
+from susp_bo.posterior_plots.common import (
+    LABEL_ACCEPTABLE,
+    LABEL_ADMISSIBLE,
+    LABEL_DENSITY,
+    LABEL_HPD50,
+    LABEL_HPD90,
+    LABEL_INTERVAL,
+    LABEL_JOINT_MAP,
+    LABEL_MARGINAL_MAP,
+    LABEL_OUTSIDE,
+    LABEL_REFERENCE,
+    acceptable_bands,
+    save,
+    verdict_title,
+)
 from susp_bo.posterior_plots.marginals import marginals_figure
 from susp_bo.posterior_plots.pairs import pairs_figure
 from susp_bo.posterior_plots.parameters import parameters_figure
@@ -37,6 +51,16 @@ from susp_bo.posterior_plots.parameters import parameters_figure
 __all__ = [
     "FIG1_NAME",
     "FIG2_NAME",
+    "LABEL_ACCEPTABLE",
+    "LABEL_ADMISSIBLE",
+    "LABEL_DENSITY",
+    "LABEL_HPD50",
+    "LABEL_HPD90",
+    "LABEL_INTERVAL",
+    "LABEL_JOINT_MAP",
+    "LABEL_MARGINAL_MAP",
+    "LABEL_OUTSIDE",
+    "LABEL_REFERENCE",
     "PAIRS_NAME",
     "acceptable_bands",
     "marginals_figure",
