@@ -185,7 +185,7 @@ def test_fig2_zooms_to_the_posterior_mass(rng: np.random.Generator) -> None:
     assert hi - lo < 0.1 * (d["bounds"][1, 0] - d["bounds"][0, 0])  # not a needle in C_w
     assert "C_w: 15.0–80.0 kN·s/m" in narrow.get_xlabel()
     # the acceptable band (32–48 kN·s/m) is beyond the narrow view: said at the edge
-    assert any("acceptable 32–48 kN·s/m →" in t.get_text() for t in narrow.texts)
+    assert any("acceptable 32.0–48.0 kN·s/m →" in t.get_text() for t in narrow.texts)
     assert _legend_labels(fig) >= {
         plots.LABEL_DENSITY,
         plots.LABEL_INTERVAL,

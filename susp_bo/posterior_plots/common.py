@@ -35,6 +35,8 @@ C_INTERVAL = "#9ecae1"
 C_JOINT = "tab:red"
 C_ACCEPT = "tab:green"
 C_ADMISSIBLE = "0.82"
+PAIR_TICKS = 4
+"""Most tick intervals on a pair-plot axis (the diagonal and the 2-D panels alike)."""
 HPD50_COLOR = "#3182bd"
 HPD90_COLOR = "#c6dbef"
 
@@ -165,6 +167,7 @@ class View:
         lo: lower end of the view, physical units.
         hi: upper end of the view, physical units.
         bounds: (lower, upper) of C_w, physical units.
+        base_unit: the parameter's SI unit without prefix (e.g. ``N·s/m``).
     """
 
     factor: float
@@ -172,6 +175,7 @@ class View:
     lo: float
     hi: float
     bounds: tuple[float, float]
+    base_unit: str = ""
 
     def s(self, v: Any) -> Any:
         """Physical value(s) → axis value(s)."""
@@ -224,7 +228,7 @@ def view_of(
     lo = max(lo - pad, lb - sliver)
     hi = min(hi + pad, ub + sliver)
     factor, prefixed = unit_scale(max(abs(lo), abs(hi)), unit)
-    return View(factor, prefixed, lo, hi, (lb, ub))
+    return View(factor, prefixed, lo, hi, (lb, ub), unit)
 
 
 def views_of(

@@ -23,6 +23,7 @@ from susp_bo.posterior_plots.common import (
     LABEL_MARGINAL_MAP,
     LABEL_OUTSIDE,
     LABEL_REFERENCE,
+    PAIR_TICKS,
     View,
     band_array,
     check_inputs,
@@ -34,7 +35,7 @@ from susp_bo.posterior_plots.common import (
     verdict_suptitle,
     views_of,
 )
-from susp_bo.units import format_range, format_values
+from susp_bo.units import format_quantity, format_range, format_values
 
 
 def draw_marginal(
@@ -72,10 +73,10 @@ def draw_marginal(
     if np.all(np.isfinite(band[:, k])):
         ax.axvspan(*view.s(band[:, k]), color=C_ACCEPT, alpha=0.15, lw=0, zorder=0)
         used.add(LABEL_ACCEPTABLE)
-        a, b = view.s(band[:, k])
-        if b < view.s(view.lo) or a > view.s(view.hi):  # the whole band is out of view
-            right = a > view.s(view.hi)
-            notes.append((f"acceptable {a:.3g}–{b:.3g} {view.unit}", right, C_ACCEPT))
+        a, b = band[:, k]
+        if b < view.lo or a > view.hi:  # the whole band is out of view
+            text = f"acceptable {format_range(a, b, view.base_unit)}"
+            notes.append((text, a > view.hi, C_ACCEPT))
     for edge, outside in ((lb, (view.lo, lb)), (ub, (ub, view.hi))):
         if outside[1] > outside[0]:
             ax.axvspan(*view.s(outside), facecolor="0.9", hatch="///", edgecolor="0.6", lw=0)
@@ -87,14 +88,15 @@ def draw_marginal(
         if view.lo <= r <= view.hi:
             ax.axvline(view.s(r), color="black", ls="-.", lw=1.3, zorder=4)
         else:
-            notes.append((f"reference {view.s(r):.3g} {view.unit}", r > view.hi, "black"))
+            text = f"reference {format_quantity(r, view.base_unit)}"
+            notes.append((text, r > view.hi, "black"))
     ax.set_xlim(view.s(view.lo), view.s(view.hi))
     for n, (text, right, color) in enumerate(notes):  # above the curve: it ends at 0.6
         edge_note(ax, text, right, 0.92 - 0.14 * n, color)
     ax.set_ylim(0.0, (1.65 if notes else 1.15) * top)
     ax.set_yticks([])
     plain_axis(ax.xaxis)
-    ax.xaxis.set_major_locator(MaxNLocator(nbins=4 if compact else 6))
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=PAIR_TICKS if compact else 6))
     return used
 
 

@@ -21,6 +21,7 @@ from susp_bo.posterior_plots.common import (
     LABEL_JOINT_MAP,
     LABEL_OUTSIDE,
     LABEL_REFERENCE,
+    PAIR_TICKS,
     View,
     axis_label,
     band_array,
@@ -133,7 +134,7 @@ def _draw_pair(
     ax.set_ylim(vy.s(vy.lo), vy.s(vy.hi))
     for axis in (ax.xaxis, ax.yaxis):
         plain_axis(axis)
-        axis.set_major_locator(MaxNLocator(nbins=3))
+        axis.set_major_locator(MaxNLocator(nbins=PAIR_TICKS))
     return used
 
 
