@@ -31,7 +31,9 @@ def plot_response(
         ``path``.
     """
     n = len(response.channels)
-    fig, axes = plt.subplots(n, 2, figsize=(11, 1.6 * n + 1), squeeze=False, sharex="col")
+    fig, axes = plt.subplots(
+        n, 2, figsize=(11, 1.6 * n + 1), squeeze=False, sharex="col", constrained_layout=True
+    )
     keep = response.time_s <= response.time_s[0] + seconds
     for row, channel in enumerate(response.channels):
         axes[row, 0].plot(response.time_s[keep], response.accelerations_m_s2[row, keep], lw=0.6)
@@ -42,8 +44,7 @@ def plot_response(
     axes[-1, 1].set_xlabel("frequency (Hz)")
     axes[0, 0].set_title("accelerations")
     axes[0, 1].set_title("log-amplitude spectra, ln((m/s²)/√Hz)")
-    fig.suptitle(title)
-    fig.tight_layout()
+    fig.suptitle(title)  # constrained layout keeps it clear of the column titles
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

@@ -385,9 +385,24 @@ def run_study(
 
 
 def write_figures(study: PreparedStudy, result: CalibrationResult, out: Path) -> list[Path]:
-    """The paper's Fig. 1 and Fig. 2 and a pair plot, as PNG files in ``out``."""
+    """The paper's Fig. 1 and Fig. 2 and a pair plot, as PNG files in ``out``.
+
+    The acceptable bands (rig spec, optional) and the reliability verdict (when the result
+    carries one) are drawn on them.
+    """
     from susp_bo import plots
 
+    band = {c.name: getattr(c, "acceptable", None) for c in study.spec.calibration}
+    reliability = getattr(result, "reliability", None)
+    if reliability is not None and hasattr(reliability, "to_dict"):
+        reliability = reliability.to_dict()
     return plots.posterior_figures(
-        result.summary, result.samples, study.bounds, out, study.reference, study.units
+        result.summary,
+        result.samples,
+        study.bounds,
+        out,
+        study.reference,
+        study.units,
+        acceptable=plots.acceptable_bands([band.get(name) for name in study.names]),
+        reliability=reliability,
     )

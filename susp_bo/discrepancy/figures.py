@@ -10,9 +10,19 @@ from susp_bo.discrepancy.detection import DB_PER_NEPER, Detection
 from susp_bo.discrepancy.workflow import DiagnosisReport
 
 
-def _heat_map(ax: object, detection: Detection, edges_hz: np.ndarray, title: str) -> object:
-    """Z (channels × frequency) with flagged bins outlined; returns the image."""
-    limit = max(4.0, float(np.nanmax(np.abs(detection.z))))
+def _z_limit(*detections: Detection) -> float:
+    """Colour-scale limit shared by heat maps drawn against one colour bar."""
+    return max(4.0, *(float(np.nanmax(np.abs(d.z))) for d in detections))
+
+
+def _heat_map(
+    ax: object, detection: Detection, edges_hz: np.ndarray, title: str, limit: float | None = None
+) -> object:
+    """Z (channels × frequency) with flagged bins outlined; returns the image.
+
+    ``limit`` is the colour-scale limit (default: this map's own, at least 4).
+    """
+    limit = _z_limit(detection) if limit is None else limit
     rows = np.arange(len(detection.channels) + 1) - 0.5
     image = ax.pcolormesh(  # type: ignore[attr-defined]
         edges_hz, rows, detection.z, cmap="RdBu_r", vmin=-limit, vmax=limit, shading="flat"
@@ -20,13 +30,18 @@ def _heat_map(ax: object, detection: Detection, edges_hz: np.ndarray, title: str
     c_idx, f_idx = np.nonzero(detection.flagged)
     ax.scatter(  # type: ignore[attr-defined]
         np.sqrt(edges_hz[f_idx] * edges_hz[f_idx + 1]), c_idx, marker="s", s=10,
-        facecolors="none", edgecolors="k", linewidths=0.8, label="flagged (BH)",
+        facecolors="none", edgecolors="k", linewidths=0.8, label="flagged band (BH)",
     )  # fmt: skip
     ax.set_xscale("log")  # type: ignore[attr-defined]
     ax.set_yticks(range(len(detection.channels)))  # type: ignore[attr-defined]
     ax.set_yticklabels(detection.channels, fontsize=7)  # type: ignore[attr-defined]
     ax.set_xlabel("frequency (Hz)")  # type: ignore[attr-defined]
-    ax.set_title(title, fontsize=9)  # type: ignore[attr-defined]
+    ax.set_title(title, fontsize=9, loc="left")  # type: ignore[attr-defined]
+    if c_idx.size:  # the markers' legend above the map's right corner, clear of the data
+        ax.legend(  # type: ignore[attr-defined]
+            loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False,
+            borderaxespad=0.1, handletextpad=0.2,
+        )  # fmt: skip
     return image
 
 
@@ -50,10 +65,11 @@ def before_after_figure(report: DiagnosisReport, path: Path | None = None) -> ob
     edges = report.problem.spec.spectrum.band_edges_hz()
     after = report.after if report.after is not None else report.before
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
-    _heat_map(axes[0], report.before, edges, f"before: gap {report.gap_before['value']:.3g}")
+    limit = _z_limit(report.before, after)  # one colour bar for both maps
+    _heat_map(axes[0], report.before, edges, f"before: gap {report.gap_before['value']:.3g}", limit)
     label = report.named_effect or "nothing added"
     image = _heat_map(
-        axes[1], after, edges, f"after ({label}): gap {report.gap_after['value']:.3g}"
+        axes[1], after, edges, f"after ({label}): gap {report.gap_after['value']:.3g}", limit
     )
     fig.colorbar(image, ax=axes[:2], label="Z")
     worst = (

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from susp_bo.discrepancy.figures import before_after_figure
 from susp_bo.discrepancy.scenarios import synthesize_problem
 from susp_bo.discrepancy.workflow import run_workflow
 
@@ -56,6 +57,14 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(
     for key, value in values.items():
         name = f"{effect}_{key}"
         assert after[name] == pytest.approx(value, rel=0.1)
+    if effect == "carbody_bending":  # its figure: both maps on the one colour bar's scale
+        import matplotlib.pyplot as plt
+
+        fig = before_after_figure(report)
+        before, after_map = (ax.collections[0].get_clim() for ax in fig.axes[:2])
+        plt.close(fig)
+        assert before == after_map
+        assert before[1] >= np.nanmax(np.abs(report.before.z))  # the flagged peak not clipped
 
 
 @pytest.mark.parametrize(("speed", "noise"), [(FAST, 0.05), (SLOW, 0.01)])
