@@ -42,7 +42,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from tqdm import tqdm
+from susp_bo.progress import progress_bar
 
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
@@ -299,7 +299,7 @@ def run_tasks(
         on_result: called in this process, in completion order, once per task,
             as soon as its outcome is known (record it in the store here). An
             exception it raises stops the batch.
-        desc: label of the tqdm bar (on stderr).
+        desc: label of the progress bar (on stderr, see susp_bo.progress).
         progress: show the bar.
 
     Returns:
@@ -307,9 +307,7 @@ def run_tasks(
     """
     arguments = [tuple(task) for task in tasks]
     outcomes: list[TaskOutcome | None] = [None] * len(arguments)
-    with tqdm(
-        total=len(arguments), desc=desc, unit="run", file=sys.stderr, disable=not progress
-    ) as bar:
+    with progress_bar(total=len(arguments), desc=desc, unit="run", disable=not progress) as bar:
 
         def finish(outcome: TaskOutcome) -> None:
             outcomes[outcome.index] = outcome

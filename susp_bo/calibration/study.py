@@ -383,7 +383,7 @@ def run_study(
     Args:
         config: the study config.
         resume: reuse the evaluation store of an interrupted run in ``config.out``.
-        progress: tqdm bars and one-line iteration summaries on stderr.
+        progress: progress bars (susp_bo.progress) and one-line iteration summaries on stderr.
 
     Returns:
         The ``result.json`` payload and the calibration result.

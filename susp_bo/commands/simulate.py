@@ -37,6 +37,12 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
                 spec = spec.with_simulation(**{key: value})
             except ValueError as error:
                 raise UsageError(f"{flag}: {value} is not allowed ({error})") from None
+    try:
+        spec.spectrum.check_sample_rate(spec.simulation.sample_rate_hz, spec.simulation.duration_s)
+    except ValueError as error:
+        raise UsageError(
+            f"--duration: {spec.simulation.duration_s:g} s is too short ({error})"
+        ) from None
     parameters = read_parameter_file(args.params) if args.params else {}
     checked_output_folder(args.out)
     try:
