@@ -44,6 +44,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     return run_calibrate(args)
 
 
+def _import(args: argparse.Namespace) -> int:
+    from susp_bo.commands.import_runs import run_import
+
+    return run_import(args)
+
+
 def _diagnose(args: argparse.Namespace) -> int:
     from susp_bo.commands.diagnose import run_diagnose
 
@@ -117,6 +123,24 @@ def build_parser() -> argparse.ArgumentParser:
         "--resume", action="store_true", help="reuse the study's evaluation store"
     )
     calibrate.set_defaults(handler=_calibrate)
+
+    imports = sub.add_parser(
+        "import",
+        help="measured runs from CSV or MATLAB files to the HDF5 format calibrate reads",
+        description="Convert measured runs to HDF5 (and check them against --rig). CSV: a run "
+        "is <run>_accelerations.csv + <run>_geometry.csv (+ optional <run>_speed.csv); "
+        "mat: one run per .mat file. A folder stands for the files in it.",
+    )
+    imports.add_argument("kind", choices=("csv", "mat"), help="file format")
+    imports.add_argument("inputs", nargs="+", metavar="FILES_OR_DIR", help="files or folders")
+    imports.add_argument("--out", required=True, help="folder for the <run>.h5 files")
+    imports.add_argument("--rig", help="check the runs against this rig (name or .toml)")
+    imports.add_argument(
+        "--speed",
+        type=number(0, strict=True, unit="m/s"),
+        help="constant speed (m/s) of CSV runs without a speed file or speed_m_s column",
+    )
+    imports.set_defaults(handler=_import)
 
     diagnose = sub.add_parser("diagnose", help="model-discrepancy workflow on a calibration result")
     diagnose.add_argument("result_dir")
