@@ -181,10 +181,16 @@ def check_runs_rig(runs: tuple[MeasuredRun, ...], rig: str, folder: Path) -> Non
         if name is not None:
             by_rig.setdefault(str(name), []).append(index)
     if len(by_rig) > 1:
-        listed = "; ".join(f"{name!r}: runs {indices}" for name, indices in sorted(by_rig.items()))
+        files = sorted(p.name for p in folder.iterdir() if p.suffix in {".h5", ".hdf5"})
+        if len(files) != len(runs):  # not the folder load_runs read: number the runs
+            files = [f"run {index}" for index in range(len(runs))]
+        listed = "; ".join(
+            f"{name!r}: {', '.join(files[i] for i in indices)}"
+            for name, indices in sorted(by_rig.items())
+        )
         raise StudyError(
-            f"data: {folder} mixes runs of {len(by_rig)} rigs (run metadata 'rig', runs "
-            f"numbered in file-name order: {listed}); keep one rig's runs per folder"
+            f"data: {folder} mixes runs of {len(by_rig)} rigs (run metadata 'rig': {listed}); "
+            "keep one rig's runs per folder"
         )
     if by_rig and rig not in by_rig:
         other = next(iter(by_rig))

@@ -219,7 +219,7 @@ def test_a_folder_mixing_two_rigs_is_refused(
     for name, folder in runs_by_rig.items():
         (mixed / f"{name}.h5").write_bytes((folder / "run_000.h5").read_bytes())
     argv = ["calibrate", str(rigs["short_a"]), str(mixed), "--out", str(tmp_path / "o")]
-    _refused(capsys, argv, "mixes runs of 2 rigs", "'short_a': runs [0]", "'short_b': runs [1]")
+    _refused(capsys, argv, "mixes runs of 2 rigs", "'short_a': short_a.h5", "'short_b': short_b.h5")
 
 
 def test_resume_on_a_folder_of_another_study_is_a_message(
