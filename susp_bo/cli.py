@@ -177,6 +177,7 @@ def _user_error_types() -> tuple[type[BaseException], ...]:
         NotADirectoryError,
         IsADirectoryError,
         PermissionError,
+        ConnectionError,  # a Dask scheduler that cannot be reached (message names it)
     )
 
 
