@@ -144,6 +144,17 @@ def test_study_toml_that_does_not_exist_is_named(
     _refused(capsys, ["calibrate", str(missing)], str(missing), "does not exist")
 
 
+def test_rig_section_in_a_study_file_says_where_it_belongs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "data").mkdir()
+    study = tmp_path / "study.toml"
+    study.write_text(
+        'rig = "hst_trailer"\ndata = "data"\nout = "o"\n[simulation]\nspeed_m_s = 80\n'
+    )
+    _refused(capsys, ["calibrate", str(study)], "simulation: unknown key", "belongs in the rig")
+
+
 def test_missing_data_folder_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     argv = ["calibrate", "hst_trailer", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]
     _refused(capsys, argv, "data:", "no folder at")
