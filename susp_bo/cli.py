@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 from collections.abc import Sequence
 
 from susp_bo import __version__
+from susp_bo.commands._arguments import integer, number
 
 
 class UsageError(ValueError):
@@ -42,6 +44,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     return run_calibrate(args)
 
 
+def _import(args: argparse.Namespace) -> int:
+    from susp_bo.commands.import_runs import run_import
+
+    return run_import(args)
+
+
 def _diagnose(args: argparse.Namespace) -> int:
     from susp_bo.commands.diagnose import run_diagnose
 
@@ -58,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--version", action="version", version=f"susp-bo {__version__}")
+    parser.add_argument("--debug", action="store_true", help="on an error, print the traceback too")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     demo = sub.add_parser(
@@ -67,7 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--out", default="susp_bo_demo", help="output folder (default: %(default)s)")
     demo.add_argument("--smoke", action="store_true", help="tiny budgets, for tests")
-    demo.add_argument("--seed", type=int, default=2024, help="random seed (default: %(default)s)")
+    demo.add_argument(
+        "--seed", type=integer(0), default=2024, help="random seed (default: %(default)s)"
+    )
     demo.set_defaults(handler=_demo)
 
     simulate = sub.add_parser(
@@ -76,9 +87,11 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("rig", help="rig name (e.g. hst_trailer) or path to a rig .toml")
     simulate.add_argument("--out", required=True)
     simulate.add_argument("--params", help="TOML file of parameter values")
-    simulate.add_argument("--speed", type=float, help="speed in m/s")
-    simulate.add_argument("--duration", type=float, help="simulated time in s")
-    simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--speed", type=number(0, strict=True, unit="m/s"), help="speed in m/s")
+    simulate.add_argument(
+        "--duration", type=number(0, strict=True, unit="s"), help="simulated time in s"
+    )
+    simulate.add_argument("--seed", type=integer(0), default=0)
     simulate.set_defaults(handler=_simulate)
 
     synth = sub.add_parser(
@@ -88,24 +101,46 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--out", required=True)
     synth.add_argument("--truth", help="TOML file of the true parameter values")
     synth.add_argument("--effect", action="append", default=[], help="NAME[:k=v,...], repeatable")
-    synth.add_argument("--speed", type=float)
-    synth.add_argument("--nu", type=int, default=3, help="number of measured runs")
-    synth.add_argument("--seed", type=int, default=0)
-    synth.add_argument("--noise", type=float, default=0.0, help="sensor noise, m/s^2 rms")
+    synth.add_argument("--speed", type=number(0, strict=True, unit="m/s"), help="speed in m/s")
+    synth.add_argument("--nu", type=integer(1), default=3, help="number of measured runs")
+    synth.add_argument("--seed", type=integer(0), default=0)
+    synth.add_argument(
+        "--noise", type=number(0, unit="m/s^2"), default=0.0, help="sensor noise, m/s^2 rms"
+    )
     synth.set_defaults(handler=_synth)
 
     calibrate = sub.add_parser("calibrate", help="the four steps: design, kriging, EGO, MCMC")
     calibrate.add_argument("rig_or_study", help="rig name/path, or a study .toml")
     calibrate.add_argument("data_dir", nargs="?", help="folder of measured runs")
     calibrate.add_argument("--out")
-    calibrate.add_argument("--budget", type=int, help="simulator-evaluation budget")
+    calibrate.add_argument(
+        "--budget", type=integer(2), help="likelihood evaluations (design + EGO together)"
+    )
     group = calibrate.add_mutually_exclusive_group()
-    group.add_argument("--workers", type=int, help="local worker processes")
+    group.add_argument("--workers", type=integer(0), help="local worker processes (0 = in-process)")
     group.add_argument("--scheduler", help="Dask scheduler address")
     calibrate.add_argument(
         "--resume", action="store_true", help="reuse the study's evaluation store"
     )
     calibrate.set_defaults(handler=_calibrate)
+
+    imports = sub.add_parser(
+        "import",
+        help="measured runs from CSV or MATLAB files to the HDF5 format calibrate reads",
+        description="Convert measured runs to HDF5 (and check them against --rig). CSV: a run "
+        "is <run>_accelerations.csv + <run>_geometry.csv (+ optional <run>_speed.csv); "
+        "mat: one run per .mat file. A folder stands for the files in it.",
+    )
+    imports.add_argument("kind", choices=("csv", "mat"), help="file format")
+    imports.add_argument("inputs", nargs="+", metavar="FILES_OR_DIR", help="files or folders")
+    imports.add_argument("--out", required=True, help="folder for the <run>.h5 files")
+    imports.add_argument("--rig", help="check the runs against this rig (name or .toml)")
+    imports.add_argument(
+        "--speed",
+        type=number(0, strict=True, unit="m/s"),
+        help="constant speed (m/s) of CSV runs without a speed file or speed_m_s column",
+    )
+    imports.set_defaults(handler=_import)
 
     diagnose = sub.add_parser("diagnose", help="model-discrepancy workflow on a calibration result")
     diagnose.add_argument("result_dir")
@@ -119,25 +154,63 @@ def build_parser() -> argparse.ArgumentParser:
     )
     diagnose.add_argument(
         "--budget",
-        type=int,
+        type=integer(2),
         help="likelihood evaluations of the recalibration (default: the study's)",
     )
     diagnose.set_defaults(handler=_diagnose)
     return parser
 
 
+def _user_error_types() -> tuple[type[BaseException], ...]:
+    """The exceptions that mean bad input (exit code 2, one message, no traceback)."""
+    from susp_bo.calibration.study import StudyError
+    from susp_bo.data.measured import MeasuredDataError
+    from susp_bo.store import StoreMismatchError
+
+    return (
+        UsageError,
+        StudyError,
+        MeasuredDataError,
+        StoreMismatchError,
+        FileNotFoundError,
+        FileExistsError,
+        NotADirectoryError,
+        IsADirectoryError,
+        PermissionError,
+        ConnectionError,  # a Dask scheduler that cannot be reached (message names it)
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the process exit code."""
+    """Run the command line; returns the process exit code.
+
+    Bad input (:class:`UsageError` and the project's input errors, see
+    :func:`_user_error_types`) is reported as one line ``susp-bo <cmd>: <message>``
+    on stderr with exit code 2; ``--debug`` adds the traceback. Bad flag values
+    are refused by argparse, also with exit code 2.
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse: --help/--version exit 0, bad flags exit 2
+        if stop.code == 2:
+            return 2
+        raise
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2
     try:
         return int(args.handler(args))
-    except UsageError as error:
+    except Exception as error:
+        if not isinstance(error, _user_error_types()):
+            raise
+        if args.debug:
+            traceback.print_exc()
         print(f"susp-bo {args.command}: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"susp-bo {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -42,7 +42,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from tqdm import tqdm
+from susp_bo.progress import progress_bar
 
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
@@ -93,12 +93,45 @@ class InProcessExecutor(Executor):
         return future
 
 
-def _single_threaded_worker() -> None:
-    """Process-pool initializer: one BLAS/OpenMP thread per worker, so N workers use N cores."""
+_PARENT_POLL_S = 0.5
+
+
+def _exit_when_orphaned(parent_pid: int, poll_s: float = _PARENT_POLL_S) -> None:
+    """Watchdog loop of a worker: ``os._exit`` as soon as its parent process is gone.
+
+    A parent killed with SIGKILL runs no cleanup, and a spawn-pool worker blocked on
+    its call queue would wait forever (holding the multiprocessing resource tracker's
+    pipe open, so the tracker stays too). When the parent dies the worker is
+    re-parented (to init or a subreaper), so ``os.getppid()`` changes: checked every
+    ``poll_s`` seconds. Portable (no ``prctl``): ``PR_SET_PDEATHSIG`` fires when the
+    parent *thread* that spawned the worker ends, which would kill healthy workers of
+    a pool submitted to from a short-lived thread.
+    """
+    while os.getppid() == parent_pid:
+        time.sleep(poll_s)
+    os._exit(1)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Start the orphan watchdog (:func:`_exit_when_orphaned`) in a daemon thread."""
+    import threading
+
+    threading.Thread(
+        target=_exit_when_orphaned,
+        args=(parent_pid,),
+        name="susp-bo-orphan-watchdog",
+        daemon=True,
+    ).start()
+
+
+def _single_threaded_worker(parent_pid: int | None = None) -> None:
+    """Process-pool initializer: one BLAS/OpenMP thread per worker, so N workers use N cores;
+    and the worker exits when the study process dies, even by SIGKILL."""
     for name in _THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
+    _die_with_parent(os.getppid() if parent_pid is None else parent_pid)
 
 
 _RESTART_TIMEOUT_S = 60.0
@@ -134,6 +167,7 @@ class RestartableProcessPool(Executor):
             max_workers=self.max_workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_single_threaded_worker,
+            initargs=(os.getpid(),),
         )
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
@@ -265,7 +299,7 @@ def run_tasks(
         on_result: called in this process, in completion order, once per task,
             as soon as its outcome is known (record it in the store here). An
             exception it raises stops the batch.
-        desc: label of the tqdm bar (on stderr).
+        desc: label of the progress bar (on stderr, see susp_bo.progress).
         progress: show the bar.
 
     Returns:
@@ -273,9 +307,7 @@ def run_tasks(
     """
     arguments = [tuple(task) for task in tasks]
     outcomes: list[TaskOutcome | None] = [None] * len(arguments)
-    with tqdm(
-        total=len(arguments), desc=desc, unit="run", file=sys.stderr, disable=not progress
-    ) as bar:
+    with progress_bar(total=len(arguments), desc=desc, unit="run", disable=not progress) as bar:
 
         def finish(outcome: TaskOutcome) -> None:
             outcomes[outcome.index] = outcome

@@ -80,7 +80,17 @@ _COLUMNS = (
 
 
 class StoreMismatchError(ValueError):
-    """The store on disk was made for another study (rig, data, names or version)."""
+    """The store on disk was made for another study (rig, data, names or version).
+
+    Attributes:
+        key: the fingerprint key that differs (``rig``, ``data``, ``parameter_names`` …).
+        stored: its value in the store.
+        current: its value for the study now.
+    """
+
+    def __init__(self, message: str, key: str = "", stored: str = "", current: str = "") -> None:
+        super().__init__(message)
+        self.key, self.stored, self.current = key, stored, current
 
 
 @dataclass(frozen=True, eq=False)  # holds arrays: compare fields, not objects
@@ -263,7 +273,10 @@ class EvaluationStore:
                 raise StoreMismatchError(
                     f"{self.path}: store was made for another study: {name!r} is {old!r} in the "
                     f"store but {new!r} now; use a new results folder, or the same "
-                    f"{name} as the stored study"
+                    f"{name} as the stored study",
+                    key=name,
+                    stored=old,
+                    current=new,
                 )
 
     def _transaction(self) -> _Transaction:

@@ -304,11 +304,16 @@ class StudyConfig:
         return tomli_w.dumps(self.to_dict())
 
 
+_RIG_SECTIONS = ("simulation", "spectrum", "calibration", "sensors", "effects")
+
+
 def _check_keys(where: str, given: Mapping[str, Any], allowed: Sequence[str]) -> None:
     for key in given:
         if key not in allowed:
             close = difflib.get_close_matches(key, allowed, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
+            if not where and key in _RIG_SECTIONS:
+                hint = f" ([{key}] belongs in the rig .toml: copy the rig, edit it, name it in rig)"
             raise ValueError(f"{where}{key}: unknown key{hint}; allowed keys: {', '.join(allowed)}")
 
 

@@ -1,4 +1,12 @@
-"""Shared test fixtures: seeded random generators, float64 torch, a headless matplotlib."""
+"""Shared test fixtures: seeded random generators, float64 torch, a headless matplotlib.
+
+Hypothesis profiles: ``ci`` (loaded when the ``CI`` environment variable is set, as
+``.ci/run`` does) derandomises the examples (a fixed, reproducible set per test: CI cannot
+turn red by chance on correct code) and keeps no example database (no sticky failure from
+an earlier run); ``dev`` (the default elsewhere) draws fresh random examples each run and
+keeps the ``.hypothesis/`` database, so local runs go on searching for real bugs. Choose
+one explicitly with ``pytest --hypothesis-profile=ci``.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +19,11 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 import torch
+from hypothesis import settings
+
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
+settings.register_profile("dev", print_blob=True)
+settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 
 @pytest.fixture

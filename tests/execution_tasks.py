@@ -47,3 +47,11 @@ def crash_once(seed: int, marker_folder: str) -> np.ndarray:
             pass
         os._exit(1)
     return log_spectrum(seed, 64)
+
+
+def sleep_then_return(seconds: float) -> float:
+    """A long task: sleeps ``seconds`` (s) in the worker, returns them."""
+    import time
+
+    time.sleep(seconds)
+    return seconds

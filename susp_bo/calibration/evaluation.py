@@ -92,7 +92,7 @@ class LikelihoodEvaluator:
         store: where every evaluation is recorded and looked up.
         executor: where simulations run.
         frequencies_hz: (F,) grid of the spectra.
-        progress: show a tqdm bar per batch of simulations.
+        progress: show a progress bar per batch of simulations (susp_bo.progress).
         noise_m_s2: sensor noise (m/s² rms) added to the simulated spectra as a
             floor before the comparison (the measurement model); 0 = none.
         sample_rate_hz: sampling rate of the measurements (Hz), for the floor.

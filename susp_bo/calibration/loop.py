@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import logging
 import math
-import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -36,7 +35,6 @@ from typing import Any, Literal
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from susp_bo.calibration.acquisition import propose_ei_batch, select_uncertainty_batch
 from susp_bo.calibration.design import (
@@ -54,6 +52,7 @@ from susp_bo.calibration.sampling import (
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate, fit_surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck, edge_points
+from susp_bo.progress import progress_bar
 
 logger = logging.getLogger(__name__)
 
@@ -301,7 +300,7 @@ def calibrate(
         bounds: (2 x q) lower/upper bounds of C_w (uniform prior).
         names: (q,) parameter names.
         settings: calibration settings (defaults if None).
-        progress: show a tqdm bar of evaluations on stderr.
+        progress: show a progress bar of evaluations on stderr (susp_bo.progress).
         on_iteration: called with an :class:`IterationReport` after every batch.
 
     Returns:
@@ -316,7 +315,7 @@ def calibrate(
     n0 = min(settings.initial_design_size or default_design_size(q), budget)
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
-    bar = tqdm(total=budget, file=sys.stderr, disable=not progress, desc="log L evaluations")
+    bar = progress_bar(total=budget, desc="log L evaluations", unit="eval", disable=not progress)
     x = space_filling_design(n0, b, _seed(settings.seed, 0, 0), settings.design_method)
     y = _evaluate(evaluate, x)
     bar.update(n0)

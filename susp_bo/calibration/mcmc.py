@@ -33,14 +33,14 @@ kernel's own ``torch.Generator`` seeded in ``setup``; nothing touches global sta
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable
 
 import pyro.ops.stats as pyro_stats
 import torch
 from pyro.infer import MCMC
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
-from tqdm import tqdm
+
+from susp_bo.progress import progress_bar, redrawn_bars
 
 Potential = Callable[[torch.Tensor], torch.Tensor]
 
@@ -221,7 +221,7 @@ def run_vectorized(
         num_samples: sampling steps after warm-up (>= 1).
         warmup_steps: adaptation steps, discarded.
         thin: keep every thin-th sampling step.
-        progress: a tqdm bar of kernel steps (all chains at once) on stderr.
+        progress: a progress bar (susp_bo.progress) of kernel steps (all chains at once) on stderr.
 
     Returns:
         (n_chains x (num_samples // thin) x q) draws.
@@ -232,11 +232,10 @@ def run_vectorized(
     params = kernel.initial_params
     n_keep = num_samples // thin
     chains, q = params[kernel.site].shape
-    bar = tqdm(
+    bar = progress_bar(
         total=warmup_steps + n_keep * thin,
         desc=f"MCMC ({chains} chains)",
         unit="step",
-        file=sys.stderr,
         disable=not progress,
         mininterval=0.5,
     )
@@ -258,7 +257,7 @@ def run_pyro(
 ) -> torch.Tensor:
     """Runs the kernel through ``pyro.infer.MCMC``; returns (n_chains x num_samples x q).
 
-    ``progress`` shows Pyro's own progress bar.
+    ``progress`` shows Pyro's own progress bar, on a terminal only (no redraws in logs).
     """
     mcmc = MCMC(
         kernel,
@@ -266,7 +265,7 @@ def run_pyro(
         warmup_steps=warmup_steps,
         initial_params={kernel.site: kernel.initial_params[kernel.site]},
         num_chains=1,
-        disable_progbar=not progress,
+        disable_progbar=not (progress and redrawn_bars()),
     )
     mcmc.run()
     draws = mcmc.get_samples()[kernel.site]  # num_samples x n_chains x q

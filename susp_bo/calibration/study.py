@@ -46,9 +46,10 @@ from susp_bo.calibration.loop import (
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
+from susp_bo.output_folder import check_output_folder
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
-from susp_bo.store import EvaluationStore, study_fingerprint
+from susp_bo.store import EvaluationStore, StoreMismatchError, study_fingerprint
 from susp_bo.study_config import StudyConfig
 
 STORE_NAME = "evaluations.sqlite"
@@ -148,6 +149,77 @@ def _sensor_noise(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> float:
     return recorded.pop()
 
 
+def import_hint(folder: Path) -> str:
+    """A hint when ``folder`` holds CSV or MATLAB files instead of HDF5 runs, else ``""``."""
+    if not folder.is_dir():
+        return ""
+    found = {
+        kind: sum(1 for p in folder.iterdir() if p.suffix.lower() == f".{kind}")
+        for kind in ("csv", "mat")
+    }
+    kinds = [kind for kind, count in found.items() if count]
+    if not kinds:
+        return ""
+    listed = " and ".join(f"{found[kind]} .{kind} files" for kind in kinds)
+    return (
+        f"; it holds {listed}: convert them to the HDF5 measured-run format first, e.g. "
+        f"susp-bo import {kinds[0]} {folder} --out {folder}_h5 --rig RIG"
+    )
+
+
+def check_runs_rig(runs: tuple[MeasuredRun, ...], rig: str, folder: Path) -> None:
+    """Refuse runs whose metadata names another rig than ``rig``, or several rigs.
+
+    Runs without a ``rig`` entry in their metadata (real measurements) pass.
+
+    Raises:
+        StudyError: naming the folder, the rigs found and the rig calibrated.
+    """
+    by_rig: dict[str, list[int]] = {}
+    for index, run in enumerate(runs):
+        name = (run.metadata or {}).get("rig")
+        if name is not None:
+            by_rig.setdefault(str(name), []).append(index)
+    if len(by_rig) > 1:
+        files = sorted(p.name for p in folder.iterdir() if p.suffix in {".h5", ".hdf5"})
+        if len(files) != len(runs):  # not the folder load_runs read: number the runs
+            files = [f"run {index}" for index in range(len(runs))]
+        listed = "; ".join(
+            f"{name!r}: {', '.join(files[i] for i in indices)}"
+            for name, indices in sorted(by_rig.items())
+        )
+        raise StudyError(
+            f"data: {folder} mixes runs of {len(by_rig)} rigs (run metadata 'rig': {listed}); "
+            "keep one rig's runs per folder"
+        )
+    if by_rig and rig not in by_rig:
+        other = next(iter(by_rig))
+        raise StudyError(
+            f"data: the runs in {folder} were recorded on rig {other!r} (run metadata 'rig') "
+            f"but the study calibrates rig {rig!r}; calibrate rig {other!r}, or use runs of "
+            f"{rig!r}"
+        )
+
+
+def _store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
+    def short(text: str) -> str:
+        return text if len(text) <= 40 else text[:37] + "..."
+
+    what = {
+        "rig": "the rig (or its parameter values)",
+        "data": "the measured data",
+        "tracks": "the measured runs",
+        "parameter_names": "the calibrated parameters",
+        "output_error": "the output error",
+        "sensor_noise_m_s2": "the sensor noise",
+    }.get(error.key, repr(error.key))
+    return StudyError(
+        f"--resume: {out} holds the evaluations of another study: {what} differs "
+        f"(stored {short(error.stored)!r}, now {short(error.current)!r}); resume with the "
+        "same rig, data and parameters, or give a new output folder"
+    )
+
+
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     """Check every input of a study and load its data (no simulation).
 
@@ -157,6 +229,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     try:
         spec = load_rig_spec(config.rig)
         names = config.check_parameters(spec.calibration_names)
+        check_output_folder(config.out, "out")
     except (FileNotFoundError, ValueError) as error:
         raise StudyError(str(error)) from error
     store_path = config.out / STORE_NAME
@@ -178,7 +251,8 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
                 source=f"{config.data}/run {index}",
             )
     except ValueError as error:
-        raise StudyError(f"data: {error}") from error
+        raise StudyError(f"data: {error}{import_hint(config.data)}") from error
+    check_runs_rig(runs, spec.name, config.data)
     measured = np.stack([run.spectra(spec.spectrum).log_amplitude for run in runs])
     tracks = tuple(
         TrackRun(f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed)
@@ -315,7 +389,7 @@ def run_study(
     Args:
         config: the study config.
         resume: reuse the evaluation store of an interrupted run in ``config.out``.
-        progress: tqdm bars and one-line iteration summaries on stderr.
+        progress: progress bars (susp_bo.progress) and one-line iteration summaries on stderr.
 
     Returns:
         The ``result.json`` payload and the calibration result.
@@ -326,6 +400,10 @@ def run_study(
     study = prepare_study(config, resume=resume)
     out = config.out
     out.mkdir(parents=True, exist_ok=True)
+    try:  # before anything is written: a refused resume leaves the folder as it was
+        store = EvaluationStore(out / STORE_NAME, store_fingerprint(study))
+    except StoreMismatchError as error:
+        raise _store_mismatch(out, error) from None
     (out / CONFIG_NAME).write_text(config.to_toml())
     log = _logger(out)
     log.info(
@@ -337,7 +415,7 @@ def run_study(
     )
     started = time.perf_counter()
     with (
-        EvaluationStore(out / STORE_NAME, store_fingerprint(study)) as store,
+        store,
         make_executor(
             workers=config.executor.workers, scheduler=config.executor.scheduler
         ) as executor,

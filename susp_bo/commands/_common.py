@@ -8,6 +8,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from susp_bo.cli import UsageError
+from susp_bo.output_folder import check_output_folder
 
 
 def read_parameter_file(path: str | Path) -> dict[str, float]:
@@ -36,8 +37,20 @@ def read_parameter_file(path: str | Path) -> dict[str, float]:
     return values
 
 
-def output_folder(out: str | Path) -> Path:
-    """Create (if needed) and return the output folder."""
-    folder = Path(out)
+def checked_output_folder(out: str | Path, label: str = "--out") -> Path:
+    """The output folder, checked (not created): refuses a path that is an existing file.
+
+    Raises:
+        UsageError: naming ``label``, the path and what is allowed.
+    """
+    try:
+        return check_output_folder(out, label)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
+def output_folder(out: str | Path, label: str = "--out") -> Path:
+    """Create (if needed) and return the output folder (checked first)."""
+    folder = checked_output_folder(out, label)
     folder.mkdir(parents=True, exist_ok=True)
     return folder

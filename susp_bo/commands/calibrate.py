@@ -9,6 +9,7 @@ from pathlib import Path
 
 from susp_bo.calibration.study import StudyError, run_study
 from susp_bo.cli import UsageError
+from susp_bo.commands._common import checked_output_folder
 from susp_bo.study_config import (
     BudgetConfig,
     ExecutorConfig,
@@ -25,6 +26,13 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
         UsageError: missing or conflicting arguments, or an invalid config.
     """
     target = Path(args.rig_or_study)
+    if args.out:
+        checked_output_folder(args.out)
+    if target.suffix == ".toml" and not target.exists():
+        raise UsageError(
+            f"RIG_OR_STUDY: {str(target)!r} does not exist; give a shipped rig's name, a rig "
+            ".toml or a study .toml"
+        )
     try:
         if (
             target.suffix == ".toml"
@@ -47,15 +55,16 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
             )
         if args.budget is not None:
             budget = config.budget
-            config = dataclasses.replace(
-                config,
-                budget=BudgetConfig(
+            try:
+                changed = BudgetConfig(
                     max_evaluations=args.budget,
                     initial_design=min(budget.initial_design, args.budget),
                     batch_size=budget.batch_size,
                     check_points=budget.check_points,
-                ),
-            )
+                )
+            except ValueError as error:
+                raise UsageError(f"--budget: {args.budget} is not allowed ({error})") from None
+            config = dataclasses.replace(config, budget=changed)
         if args.workers is not None or args.scheduler is not None:
             config = dataclasses.replace(
                 config, executor=ExecutorConfig(workers=args.workers, scheduler=args.scheduler)

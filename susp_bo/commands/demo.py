@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from susp_bo.calibration.study import run_study
+from susp_bo.commands._common import checked_output_folder
 from susp_bo.commands.calibrate import format_summary
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
@@ -53,7 +54,7 @@ def demo_config(out: Path, smoke: bool, seed: int) -> StudyConfig:
 
 def run_demo(out: str | Path, smoke: bool = False, seed: int = 2024) -> int:
     """Synthesise the measured runs, calibrate, print the summary; returns the exit code."""
-    folder = Path(out).resolve()
+    folder = checked_output_folder(out).resolve()
     data = folder / "data"
     spec = load_rig_spec(DEMO_RIG)
     nu = 2 if smoke else 3

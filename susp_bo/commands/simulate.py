@@ -9,7 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, read_parameter_file
+from susp_bo.commands._common import (
+    checked_output_folder,
+    output_folder,
+    read_parameter_file,
+)
 from susp_bo.json_files import write_json
 from susp_bo.rig.simulator import Rig, synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
@@ -26,14 +30,22 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
         spec = load_rig_spec(args.rig)
     except (FileNotFoundError, ValueError) as error:
         raise UsageError(str(error)) from error
-    changes = {}
-    if args.speed is not None:
-        changes["speed_m_s"] = args.speed
-    if args.duration is not None:
-        changes["duration_s"] = args.duration
-    parameters = read_parameter_file(args.params) if args.params else {}
+    for flag, key in (("--speed", "speed_m_s"), ("--duration", "duration_s")):
+        value = getattr(args, flag[2:])
+        if value is not None:
+            try:
+                spec = spec.with_simulation(**{key: value})
+            except ValueError as error:
+                raise UsageError(f"{flag}: {value} is not allowed ({error})") from None
     try:
-        spec = spec.with_simulation(**changes) if changes else spec
+        spec.spectrum.check_sample_rate(spec.simulation.sample_rate_hz, spec.simulation.duration_s)
+    except ValueError as error:
+        raise UsageError(
+            f"--duration: {spec.simulation.duration_s:g} s is too short ({error})"
+        ) from None
+    parameters = read_parameter_file(args.params) if args.params else {}
+    checked_output_folder(args.out)
+    try:
         spec = spec.with_parameters(parameters)
     except ValueError as error:
         raise UsageError(str(error)) from error

@@ -6,7 +6,11 @@ import argparse
 import sys
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, read_parameter_file
+from susp_bo.commands._common import (
+    checked_output_folder,
+    output_folder,
+    read_parameter_file,
+)
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.discrepancy.effects import with_effect
@@ -44,6 +48,7 @@ def run_synth(args: argparse.Namespace) -> int:
     their values, the run metadata names them.
     """
     effects = [parse_effect(text) for text in args.effect]
+    checked_output_folder(args.out)
     try:
         spec = load_rig_spec(args.rig)
         truth = read_parameter_file(args.truth) if args.truth else {}
@@ -58,8 +63,11 @@ def run_synth(args: argparse.Namespace) -> int:
         raise UsageError(f"--nu: got {args.nu}; expected an integer >= 1")
     if args.noise < 0:
         raise UsageError(f"--noise: got {args.noise}; expected >= 0 m/s^2")
-    if args.speed is not None and not args.speed > 0:
-        raise UsageError(f"--speed: got {args.speed}; expected > 0 m/s")
+    if args.speed is not None:
+        try:
+            spec.with_simulation(speed_m_s=args.speed)
+        except ValueError as error:
+            raise UsageError(f"--speed: {args.speed} is not allowed ({error})") from None
     out = output_folder(args.out)
     print(f"susp-bo synth: {args.nu} runs of {spec.name}, seed {args.seed}", file=sys.stderr)
     runs = synthesize_runs(

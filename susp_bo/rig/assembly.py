@@ -93,6 +93,16 @@ _REQUIRED = {
 }
 
 
+_OPTIONAL = {"wheelset": ("roll_inertia", "spin_inertia")}
+"""Named parameters a rig may define (defaults derived from the required ones)."""
+
+
+def allowed_parameters(topology: str) -> dict[str, tuple[str, ...]]:
+    """Keys each parameter section of a rig of this topology may hold (required + optional)."""
+    required_parameters(topology)  # checks the topology
+    return {section: (*keys, *_OPTIONAL.get(section, ())) for section, keys in _REQUIRED.items()}
+
+
 def required_parameters(topology: str) -> tuple[str, ...]:
     """Named parameters a rig of this topology must define."""
     if topology != "two_bogie_car":

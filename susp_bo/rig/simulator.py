@@ -19,9 +19,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import pybullet
 from numpy.typing import NDArray
 
+from susp_bo.rig._pybullet import pybullet
 from susp_bo.rig.assembly import Assembly, build_assembly
 from susp_bo.rig.dynamics import ForceModel
 from susp_bo.rig.response import RigResponse, SimulationFailed

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.catalog import rig_path
+from susp_bo.rig.schema import check_rig_keys
 
 if TYPE_CHECKING:
     from susp_bo.rig.spectra import SpectrumSettings
@@ -371,18 +372,7 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     """
     from susp_bo.rig.spectra import SpectrumSettings
 
-    known = {
-        "rig",
-        "sensors",
-        "simulation",
-        "spectrum",
-        "effects",
-        "calibration",
-        *PARAMETER_SECTIONS,
-    }
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise ValueError(f"{source}: unknown sections {unknown}; allowed {sorted(known)}")
+    check_rig_keys(data, source)
     rig = dict(data.get("rig", {}))
     if "name" not in rig:
         raise ValueError(f"{source}: [rig] needs a name")
@@ -414,7 +404,11 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     spectrum = SpectrumSettings(**data.get("spectrum", {}))
     calibration = []
     for entry in data.get("calibration", {}).get("parameters", []):
-        calibration.append(CalibrationParameter(**entry))
+        # "acceptable" (maintenance limits) is allowed by the schema; parsed where supported
+        supported = CalibrationParameter.__dataclass_fields__
+        calibration.append(
+            CalibrationParameter(**{k: v for k, v in entry.items() if k in supported})
+        )
         name = entry["name"]
         if name in parameters and not math.isclose(
             parameters[name], calibration[-1].reference, rel_tol=1e-12
@@ -446,5 +440,8 @@ def load_rig_spec(name_or_path: str | Path) -> RigSpec:
     """
     path = rig_path(name_or_path)
     with path.open("rb") as handle:
-        data = tomllib.load(handle)
-    return parse_rig(data, source=path.name)
+        try:
+            data = tomllib.load(handle)
+        except tomllib.TOMLDecodeError as error:
+            raise ValueError(f"{path}: not valid TOML ({error})") from None
+    return parse_rig(data, source=str(path))

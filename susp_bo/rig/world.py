@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import contextlib
 
-import pybullet
-from pybullet_utils.bullet_client import BulletClient
-
+from susp_bo.rig._pybullet import direct_client, pybullet
 from susp_bo.rig.assembly import Assembly
 
 _RIGID_CHAIN = (
@@ -53,7 +51,7 @@ class VehicleWorld:
     """
 
     def __init__(self, time_step_s: float) -> None:
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        self.client = direct_client()  # no "argv[0]=" banner in the output
         self.time_step_s = float(time_step_s)
         self.body_id = -1
         self.joints: list[int] = []

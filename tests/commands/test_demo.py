@@ -33,3 +33,8 @@ def test_demo_smoke_writes_a_result_with_the_truth_and_figures(tmp_path: Path) -
     # progress and the summary table go to stderr
     assert "marginal MAP" in done.stderr
     assert "simulations" in done.stderr
+    # stderr is a pipe here: plain progress lines, no escape codes, no PyBullet banners
+    assert "log L evaluations: 10/10 eval (100 %)" in done.stderr
+    for output in (done.stdout, done.stderr):
+        assert "\x1b" not in output and "\r" not in output
+        assert "argv[0]" not in output and "pybullet build time" not in output

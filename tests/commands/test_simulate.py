@@ -49,8 +49,8 @@ def test_simulate_writes_signals_spectra_and_a_figure(
     ("arguments", "message"),
     [
         (["--params", "{params}"], "unknown parameter 'no_such_parameter'"),
-        (["--speed", "-3"], "speed_m_s"),
-        (["--duration", "nan"], "duration_s"),
+        (["--speed", "-3"], "argument --speed: '-3' is not allowed"),
+        (["--duration", "nan"], "argument --duration: 'nan' is not allowed"),
     ],
 )
 def test_bad_input_is_refused_with_the_field_named(

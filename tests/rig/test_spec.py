@@ -115,7 +115,7 @@ def test_round_trip_through_a_written_toml_file(tmp_path) -> None:
 @pytest.mark.parametrize(
     ("edit", "message"),
     [
-        (lambda d: d.update(suspension={"x": 1.0}), "unknown sections"),
+        (lambda d: d.update(suspension={"x": 1.0}), r"top level: suspension: unknown key"),
         (lambda d: d["primary"].pop("vertical_stiffness"), "missing parameters"),
         (lambda d: d["sensors"][0].update(direction="longitudinal"), "direction"),
         (lambda d: d["sensors"][0].update(body="wheelset_1"), None),
@@ -145,6 +145,61 @@ def test_invalid_rig_files_fail_with_a_named_field(edit, message) -> None:
         return
     with pytest.raises(ValueError, match=message):
         parse_rig(document)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (
+            lambda d: d["carbody"].update(cg_hieght=1.9),
+            r"\[carbody\] cg_hieght: unknown key \(did you mean 'cg_height'\?\)",
+        ),
+        (
+            lambda d: d["simulation"].update(track_qualty="low"),
+            r"\[simulation\] track_qualty: unknown key \(did you mean 'track_quality'\?\)",
+        ),
+        (
+            lambda d: d["spectrum"].update(f_max=20.0),
+            r"\[spectrum\] f_max: unknown key \(did you mean 'f_max_hz'\?\)",
+        ),
+        (
+            lambda d: d["calibration"]["parameters"][0].update(units="N/m"),
+            r"primary_vertical_stiffness: units: unknown key \(did you mean 'unit'\?\)",
+        ),
+        (
+            lambda d: d["calibration"]["parameters"][0].pop("upper"),
+            r"primary_vertical_stiffness: missing upper",
+        ),
+        (
+            lambda d: d["sensors"][0].update(positon_m=[0, 0, 0]),
+            r"\[\[sensors\]\] entry 1: positon_m: unknown key \(did you mean 'position_m'\?\)",
+        ),
+        (lambda d: d["rig"].update(nmae="x"), r"\[rig\] nmae: unknown key \(did you mean 'name'"),
+        (lambda d: d["calibration"].update(parameter=[]), r"did you mean 'parameters'"),
+        (lambda d: d.update(wheelsets={"mass": 1.0}), r"did you mean 'wheelset'"),
+    ],
+)
+def test_unknown_keys_anywhere_are_errors_with_a_hint(edit, message) -> None:
+    """A typo never becomes a new parameter: `cg_hieght = 1.9` used to pass silently."""
+    document = _document()
+    edit(document)
+    with pytest.raises(ValueError, match=message):
+        parse_rig(document, source="typo.toml")
+
+
+def test_acceptable_key_and_optional_parameters_are_allowed() -> None:
+    document = _document()
+    document["calibration"]["parameters"][0]["acceptable"] = [0.9e6, 1.5e6]
+    spec = parse_rig(document)
+    assert spec.calibration_names[0] == "primary_vertical_stiffness"
+    assert spec.parameters["wheelset_spin_inertia"] == 123.0  # optional key of [wheelset]
+
+
+def test_invalid_toml_names_the_file_and_line(tmp_path) -> None:
+    path = tmp_path / "broken.toml"
+    path.write_text('[rig]\nname = "x"\n[carbody\nmass = 1.0\n')
+    with pytest.raises(ValueError, match=r"broken.toml: not valid TOML .*line 3"):
+        load_rig_spec(path)
 
 
 def test_effects_table_is_parsed_for_the_registry() -> None:

@@ -278,25 +278,41 @@ def test_axle_positions_follow_the_convention(
         assert excitation.vertical_m[:, 0].min() == pytest.approx(0.0, abs=1e-9)
 
 
+@pytest.fixture(scope="module")
+def lag_track() -> TrackGeometry:
+    return TrackGeometry.synthetic("low", length_m=2600.0, seed=5)
+
+
 @settings(max_examples=15, deadline=None)
 @given(spacing=st.floats(3.0, 25.0), speed=st.floats(20.0, 90.0))
-def test_delay_between_axles_is_spacing_over_speed(spacing: float, speed: float) -> None:
-    track = TrackGeometry.synthetic("low", length_m=2600.0, seed=5)
+def test_delay_between_axles_is_spacing_over_speed(
+    lag_track: TrackGeometry, spacing: float, speed: float
+) -> None:
+    """The trailing axle meets, spacing/speed later, exactly the track the leading axle met.
+
+    The lag is checked exactly, not estimated: at constant speed both axles sample the same
+    spline at the same track coordinate, so ``trailing(t + spacing/speed) == leading(t)`` to
+    rounding (measured worst 1e-13 of the signal scale over 2 000 random pairs), while half a
+    sample (2.5 ms) off already differs by > 1 % (measured least 1.4 %). An earlier version
+    located the peak of the raw cross-correlation of the two finite records with a parabolic
+    refinement: that estimator is biased by the records' edges (the energy of the shifted
+    window changes with the shift for a signal dominated by 50-200 m wavelengths), by up to
+    1.03 samples over 300 random pairs, so its 1-sample tolerance failed by chance.
+    """
     sample_rate = 200.0
-    time = np.arange(0.0, 24.0, 1.0 / sample_rate)
-    excitation = axle_excitation(
-        track, SpeedProfile.constant(speed, 24.0), [spacing / 2, -spacing / 2], time
-    )
-    leading, trailing = excitation.vertical_m
-    lag = scipy.signal.correlation_lags(trailing.size, leading.size)
-    correlation = scipy.signal.correlate(
-        trailing - trailing.mean(), leading - leading.mean(), method="fft"
-    )
-    best = int(np.argmax(correlation))
-    # parabolic refinement of the peak to sub-sample resolution
-    y0, y1, y2 = correlation[best - 1 : best + 2]
-    peak = lag[best] + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
-    assert peak / sample_rate == pytest.approx(spacing / speed, abs=1.0 / sample_rate)
+    delay = spacing / speed
+    time = np.arange(0.0, 22.0, 1.0 / sample_rate)  # t + delay stays inside the 24 s record
+    profile = SpeedProfile.constant(speed, 24.0)
+    axles = [spacing / 2, -spacing / 2]  # leading, trailing
+
+    def seen(times: np.ndarray) -> np.ndarray:
+        return axle_excitation(lag_track, profile, axles, times).vertical_m
+
+    leading = seen(time)[0]
+    scale = float(np.abs(leading).max())
+    np.testing.assert_allclose(seen(time + delay)[1], leading, rtol=0, atol=1e-9 * scale)
+    for wrong in (delay + 0.5 / sample_rate, delay - 0.5 / sample_rate, 0.0):
+        assert np.abs(seen(time + wrong)[1] - leading).max() > 1e-3 * scale
 
 
 def test_rates_equal_analytic_derivative_at_variable_speed() -> None:

@@ -1,0 +1,75 @@
+"""``susp-bo import csv|mat FILES_OR_DIR... --out DIR [--rig RIG]``: measured runs to HDF5.
+
+Reads the runs (file naming in :mod:`susp_bo.data.collect`, layouts in
+:mod:`susp_bo.data.importers`), converts their accelerations to m/s², and with
+``--rig`` checks each against the rig as ``calibrate`` will (its channels, kept
+in the rig's order; the band and the Welch segment; the track covering the
+distance travelled plus the axle span) and records the rig's name in the run
+metadata. Every run is read and checked before any file is written; then
+``DIR/<run>.h5`` is written per run (the measured-run format ``calibrate`` reads).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+
+from susp_bo.cli import UsageError
+from susp_bo.commands._common import checked_output_folder, output_folder
+
+
+def run_import(args: argparse.Namespace) -> int:
+    """Convert, check and write the runs; returns the exit code."""
+    from susp_bo.data.collect import read_runs
+    from susp_bo.data.measured import save_run, validate_run
+
+    out = checked_output_folder(args.out)
+    spec = None
+    if args.rig is not None:
+        from susp_bo.rig.spec import load_rig_spec
+
+        try:
+            spec = load_rig_spec(args.rig)
+        except (FileNotFoundError, ValueError) as error:
+            raise UsageError(f"--rig: {error}") from None
+    runs = read_runs(args.kind, args.inputs, speed_m_s=args.speed)
+    checked = []
+    for name, run in runs:
+        run = run.to_si()
+        if spec is not None:
+            from susp_bo.rig.simulator import axle_span_m
+
+            source = str(run.metadata.get("source", name))
+            validate_run(
+                run,
+                spec.channels,
+                spec.spectrum,
+                axle_span_m=axle_span_m(spec),
+                source=f"{source} (run {name!r}, checked against rig {spec.name!r})",
+            )
+            recorded = run.metadata.get("rig")
+            if recorded is not None and recorded != spec.name:
+                raise UsageError(
+                    f"--rig: run {name!r} ({source}) records rig {recorded!r} in its metadata, "
+                    f"not {spec.name!r}; import it with --rig {recorded}"
+                )
+            run = run.select(spec.channels)
+            run = dataclasses.replace(run, metadata={**run.metadata, "rig": spec.name})
+        checked.append((name, run))
+    targets = [out / f"{name}.h5" for name, _ in checked]
+    existing = [str(path) for path in targets if path.exists()]
+    if existing:
+        raise UsageError(
+            f"--out: {out} already holds {', '.join(existing)}; choose another folder "
+            "(imported runs are never overwritten)"
+        )
+    output_folder(out)
+    for (_, run), target in zip(checked, targets):
+        save_run(run, target)
+    checked_against = f", checked against rig {spec.name!r}" if spec is not None else ""
+    print(
+        f"susp-bo import: wrote {len(checked)} run(s) to {out}{checked_against}",
+        file=sys.stderr,
+    )
+    return 0

@@ -1,0 +1,29 @@
+"""Output folders: refuse, before any work, a path that cannot become a folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def check_output_folder(path: str | Path, label: str = "--out") -> Path:
+    """Return ``path`` if it is an existing folder or can be created as one.
+
+    Args:
+        path: the output folder.
+        label: the flag or config key that named it, for the message.
+
+    Raises:
+        ValueError: ``path`` (or one of its parents) is an existing file, e.g.
+            ``"--out: results.json is an existing file; expected a folder …"``.
+    """
+    folder = Path(path)
+    for candidate in (folder, *folder.parents):
+        if candidate.exists():
+            if not candidate.is_dir():
+                where = "" if candidate == folder else f" (its parent {candidate} is a file)"
+                raise ValueError(
+                    f"{label}: {str(folder)!r} is not allowed{where}; "
+                    f"{candidate} is an existing file, expected a folder (existing or new)"
+                )
+            break
+    return folder

@@ -1,0 +1,211 @@
+"""``susp-bo import csv|mat``: real CSV and .mat files to the HDF5 measured format, checked
+against the rig, with messages naming the file and what is expected."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io
+
+from susp_bo.cli import main
+from susp_bo.data.importers import write_csv_run, write_mat_run
+from susp_bo.data.measured import MeasuredRun, load_runs
+from susp_bo.rig.spec import load_rig_spec
+from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
+
+RIG = "hst_trailer"
+
+
+def _run(seed: int, channels: tuple[str, ...] | None = None, track_m: float = 300.0) -> MeasuredRun:
+    """10 s at 20 m/s (200 m + 20 m axle span) at 100 Hz, in g (converted on import)."""
+    channels = channels or load_rig_spec(RIG).channels
+    rng = np.random.default_rng(seed)
+    return MeasuredRun(
+        geometry=TrackGeometry.synthetic("low", length_m=track_m, spacing_m=0.5, seed=seed),
+        speed=SpeedProfile.constant(20.0, 10.0),
+        channels=tuple(reversed(channels)),  # any order: the rig's order on import
+        accelerations_m_s2=rng.normal(0.0, 0.02, size=(len(channels), 1000)),
+        sample_rate_hz=100.0,
+        units=("g",) * len(channels),
+    )
+
+
+def _csv(folder: Path, name: str, run: MeasuredRun) -> None:
+    folder.mkdir(exist_ok=True)
+    write_csv_run(
+        run,
+        folder / f"{name}_accelerations.csv",
+        folder / f"{name}_geometry.csv",
+        folder / f"{name}_speed.csv",
+    )
+
+
+def _code_and_err(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[int, str]:
+    code = main(argv)
+    return code, capsys.readouterr().err
+
+
+def test_csv_folder_imports_checked_in_the_rigs_channel_order(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    source = tmp_path / "csv"
+    originals = {name: _run(seed) for seed, name in enumerate(("north", "south"))}
+    for name, run in originals.items():
+        _csv(source, name, run)
+    out = tmp_path / "h5"
+    code, err = _code_and_err(
+        capsys, ["import", "csv", str(source), "--out", str(out), "--rig", RIG]
+    )
+    assert code == 0, err
+    assert "wrote 2 run(s)" in err
+    assert sorted(p.name for p in out.iterdir()) == ["north.h5", "south.h5"]
+    channels = load_rig_spec(RIG).channels
+    runs = load_runs(out, channels=channels)
+    for run, original in zip(runs, originals.values()):
+        assert run.channels == channels and set(run.units) == {"m/s^2"}
+        row = original.channels.index(channels[0])
+        np.testing.assert_allclose(  # g -> m/s^2
+            run.accelerations_m_s2[0], original.accelerations_m_s2[row] * 9.80665, rtol=1e-12
+        )
+        assert run.metadata["rig"] == RIG
+        np.testing.assert_array_equal(run.geometry.vertical_m, original.geometry.vertical_m)
+
+
+def test_mat_files_import_savemat_by_hand_and_exported(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    source = tmp_path / "mat"
+    source.mkdir()
+    write_mat_run(_run(1), source / "exported.mat")
+    run = _run(2)
+    scipy.io.savemat(
+        source / "by_hand.mat",
+        {
+            "accelerations": run.accelerations_m_s2.T,  # (n_t x C)
+            "channels": np.array(run.channels, dtype=object),
+            "units": np.array(run.units, dtype=object),
+            "sample_rate_hz": 100.0,
+            "spacing_m": 0.5,
+            "speed_m_s": 20.0,
+            "metadata_json": json.dumps({"line": "test track"}),
+            **{name: getattr(run.geometry, name) for name in GEOMETRY_COMPONENTS},
+        },
+    )
+    out = tmp_path / "h5"
+    code, err = _code_and_err(
+        capsys,
+        [
+            "import",
+            "mat",
+            str(source / "by_hand.mat"),
+            str(source / "exported.mat"),
+            "--out",
+            str(out),
+            "--rig",
+            RIG,
+        ],
+    )
+    assert code == 0, err
+    runs = load_runs(out)
+    assert [r.metadata["line"] for r in runs[:1]] == ["test track"]
+    assert all(r.metadata["rig"] == RIG for r in runs)
+
+
+def test_without_a_rig_runs_are_converted_unchecked(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _csv(tmp_path / "csv", "a", _run(0, channels=("x", "y")))
+    out = tmp_path / "h5"
+    code, err = _code_and_err(capsys, ["import", "csv", str(tmp_path / "csv"), "--out", str(out)])
+    assert code == 0, err
+    (run,) = load_runs(out)
+    assert run.channels == ("y", "x") and "rig" not in run.metadata
+
+
+@pytest.mark.parametrize(
+    ("run", "needles"),
+    [
+        (_run(0, channels=("carbody_front_vertical", "x")), ["missing channel(s)", "'a'"]),
+        (_run(0, track_m=150.0), ["track shorter than the run", "axle span"]),
+    ],
+    ids=["channels", "track"],
+)
+def test_runs_that_do_not_fit_the_rig_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], run: MeasuredRun, needles: list[str]
+) -> None:
+    _csv(tmp_path / "csv", "a", run)
+    out = tmp_path / "h5"
+    argv = ["import", "csv", str(tmp_path / "csv"), "--out", str(out), "--rig", RIG]
+    code, err = _code_and_err(capsys, argv)
+    assert code == 2 and "Traceback" not in err
+    assert "a_accelerations.csv" in err and f"rig '{RIG}'" in err
+    for needle in needles:
+        assert needle in err, err
+    assert not out.exists()  # nothing written when a run is refused
+
+
+@pytest.mark.parametrize(
+    ("files", "needle"),
+    [
+        ({"run1.csv": "time_s,x\n0,1\n"}, "name CSV files <run>_accelerations.csv"),
+        ({"r_accelerations.csv": "time_s,x\n0,1\n"}, "missing r_geometry.csv"),
+        ({}, "no .csv files found"),
+        (
+            {"r_geometry.csv": "s_m\n0\n1\n", "r_accelerations.csv": "t,x\n0,1\n1,1\n"},
+            "first column must be 'time_s'",
+        ),
+    ],
+)
+def test_bad_csv_inputs_are_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], files: dict[str, str], needle: str
+) -> None:
+    source = tmp_path / "in"
+    source.mkdir()
+    for name, text in files.items():
+        (source / name).write_text(text)
+    code, err = _code_and_err(capsys, ["import", "csv", str(source), "--out", str(tmp_path / "o")])
+    assert code == 2 and needle in err and "Traceback" not in err, err
+
+
+def test_bad_paths_and_flags_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "nope"
+    code, err = _code_and_err(capsys, ["import", "mat", str(missing), "--out", str(tmp_path)])
+    assert code == 2 and f"{missing}: no such file or folder" in err
+    text = tmp_path / "notes.txt"
+    text.write_text("x")
+    code, err = _code_and_err(capsys, ["import", "mat", str(text), "--out", str(tmp_path / "o")])
+    assert code == 2 and "not a .mat file" in err
+    code, err = _code_and_err(capsys, ["import", "xls", str(tmp_path), "--out", str(tmp_path)])
+    assert code == 2 and "invalid choice: 'xls'" in err
+    code, err = _code_and_err(capsys, ["import", "csv", str(tmp_path), "--out", str(text)])
+    assert code == 2 and "--out:" in err and "existing file" in err
+    code, err = _code_and_err(
+        capsys, ["import", "csv", str(tmp_path), "--out", str(tmp_path / "o"), "--rig", "nope"]
+    )
+    assert code == 2 and "--rig:" in err and RIG in err
+
+
+def test_existing_runs_are_not_overwritten(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _csv(tmp_path / "csv", "a", _run(0))
+    out = tmp_path / "h5"
+    argv = ["import", "csv", str(tmp_path / "csv"), "--out", str(out), "--rig", RIG]
+    assert main(argv) == 0
+    before = (out / "a.h5").read_bytes()
+    capsys.readouterr()
+    code, err = _code_and_err(capsys, argv)
+    assert code == 2 and "already holds" in err and (out / "a.h5").read_bytes() == before
+
+
+def test_calibrate_on_a_csv_folder_says_how_to_import(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _csv(tmp_path / "csv", "a", _run(0))
+    argv = ["calibrate", RIG, str(tmp_path / "csv"), "--out", str(tmp_path / "o")]
+    code, err = _code_and_err(capsys, argv)
+    assert code == 2
+    assert "holds 3 .csv files" in err and "susp-bo import csv" in err
