@@ -214,8 +214,8 @@ def design_inputs(
         x = float(sensor.position_m[0])  # type: ignore[attr-defined]
         roll = references.get(sensor.body, {}).get("roll", 0.0)  # type: ignore[attr-defined]
         if sensor.direction == "lateral":  # type: ignore[attr-defined]
-            sensor_terms[:, c] = (
-                v2 * design.curvature(s_c + x) * cos_c + GRAVITY_M_S2 * (sin_c + roll)
+            sensor_terms[:, c] = v2 * design.curvature(s_c + x) * cos_c + GRAVITY_M_S2 * (
+                sin_c + roll
             )
         else:
             sensor_terms[:, c] = -vertical_load(1.0, x)
@@ -275,3 +275,34 @@ def steady_state(
             z = np.concatenate([q, np.zeros(n_in)]) + offsets
             return q, gd @ z
     raise RuntimeError(f"steady_state: Newton did not converge in {max_iterations} iterations")
+
+
+def reference_specific_force(
+    assembly: Assembly,
+    sensors: tuple[object, ...],
+    design: TrackDesign,
+    speed: object,
+    time_s: FloatArray,
+) -> FloatArray:
+    """Specific force each sensor reads on a vehicle riding its reference frames, (C x n_t).
+
+    This is the design's quasi-static part of the signals — ``V² κ(s_i) + g sin θ``
+    with the roll of the sensor's body reference (chord of its supports), see the
+    module docstring — and what the spectra remove on a designed line. It depends
+    on the design, the speed record and the vehicle's geometry (axle, bogie and
+    sensor positions) only, never on suspension parameters, so measured and
+    simulated signals get exactly the same treatment. What remains is the
+    vehicle's own response: dynamics plus its quasi-static roll-out and offsets.
+
+    Args:
+        assembly: the vehicle (geometry).
+        sensors: sensor specs in channel order (C,).
+        design: the line.
+        speed: the :class:`~susp_bo.rig.track.SpeedProfile` of the run.
+        time_s: sample times on the speed clock (n_t,) s; the rearmost axle is at
+            chainage 0 at t = 0 (the measured-run convention).
+    """
+    times = np.asarray(time_s, dtype=np.float64)
+    car = -float(np.min(assembly.axle_positions_m)) + speed.distance_m(times)  # type: ignore[attr-defined]
+    velocity = speed.speed_at(times)  # type: ignore[attr-defined]
+    return design_inputs(assembly, design, car, velocity, 1.0, sensors).sensors.T

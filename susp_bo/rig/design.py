@@ -236,7 +236,11 @@ class TrackDesign:
         index, u, length = self._locate(s)
         heading = self._integrals[0]
         k0 = self.curvature_1_m[index]
-        dk = np.where(length > 0, (self.curvature_1_m[index + 1] - k0) / np.where(length > 0, length, 1.0), 0.0)
+        dk = np.where(
+            length > 0,
+            (self.curvature_1_m[index + 1] - k0) / np.where(length > 0, length, 1.0),
+            0.0,
+        )
         return heading[index] + k0 * u + 0.5 * dk * u**2
 
     def lateral_m(self, s: ArrayLike) -> FloatArray:
@@ -290,8 +294,8 @@ def design_specific_force(
 
     Lateral (+ left, track-plane axis) ``V² κ cos θ + g sin θ``; vertical change
     from ``g`` (+ up) ``g (cos θ cos α − 1) − V² κ sin θ + V² dG/ds`` with
-    ``α = atan G``. This is what the spectra remove from measured and simulated
-    signals alike on a line with a design (see :mod:`susp_bo.rig.response`).
+    ``α = atan G``. (A sensor reads this plus the terms of its body's reference
+    frame and the vehicle's own response, see :mod:`susp_bo.rig.curving`.)
 
     Args:
         design: the line.
@@ -315,45 +319,10 @@ def design_specific_force(
 
 
 def cant_deficiency_m(radius_m: float, speed_m_s: float, cant_m: float) -> float:
-    """Cant deficiency ``e0 V² / (g R) − cant`` (m) of a steady curve (``cant`` >= 0 on the outer rail)."""
+    """Cant deficiency ``e0 V² / (g R) − cant`` (m) of a steady curve (cant >= 0, outer rail)."""
     return RAIL_CENTRES_M * speed_m_s**2 / (GRAVITY_M_S2 * radius_m) - cant_m
 
 
 def balancing_cant_m(radius_m: float, speed_m_s: float) -> float:
     """The cant (m) that makes ``V²/R − g sin θ`` vanish: ``e0 V² / (g R)`` (small angles)."""
     return RAIL_CENTRES_M * math.sin(math.atan(speed_m_s**2 / (GRAVITY_M_S2 * radius_m)))
-
-
-def quasi_static_signals(
-    design: TrackDesign,
-    speed: object,
-    time_s: ArrayLike,
-    sensors: tuple[object, ...],
-    rear_axle_m: float,
-) -> FloatArray:
-    """The design's quasi-static specific force at every sensor, (C x n_t) m/s².
-
-    What the spectra remove on a designed line, computed from data only (design,
-    speed record, sensor positions), never from the vehicle's parameters, so that
-    measured and simulated signals get exactly the same treatment: a lateral
-    sensor gets the lateral, a vertical sensor the vertical value of
-    :func:`design_specific_force` at its own chainage
-    ``s = −rear_axle_m + distance(t) + x_sensor`` (the rearmost axle is at s = 0 at
-    t = 0, the convention of the measured-run format).
-
-    Args:
-        design: the line.
-        speed: the :class:`~susp_bo.rig.track.SpeedProfile` of the run.
-        time_s: sample times on the speed clock (n_t,) s.
-        sensors: sensor specs (``position_m``, ``direction``), in channel order (C,).
-        rear_axle_m: position of the rearmost axle from the car centre (m, < 0).
-    """
-    times = np.asarray(time_s, dtype=np.float64)
-    travelled = speed.distance_m(times)  # type: ignore[attr-defined]
-    velocity = speed.speed_at(times)  # type: ignore[attr-defined]
-    out = np.zeros((len(sensors), times.size))
-    for c, sensor in enumerate(sensors):
-        chainage = -rear_axle_m + travelled + float(sensor.position_m[0])  # type: ignore[attr-defined]
-        lateral, vertical = design_specific_force(design, chainage, velocity)
-        out[c] = lateral if sensor.direction == "lateral" else vertical  # type: ignore[attr-defined]
-    return out

@@ -27,6 +27,8 @@ import scipy.fft
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import INPUTS_PER_AXLE, Assembly, build_assembly
+from susp_bo.rig.design import TrackDesign
+from susp_bo.rig.linear_curving import OperatingPoint, operating_points, point_state
 from susp_bo.rig.response import RigResponse
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import Spectra, SpectrumSettings
@@ -66,8 +68,18 @@ class StateSpace:
     assembly: Assembly
 
 
-def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
-    """Linearise an assembly about the static equilibrium at speed ``speed_m_s`` (m/s)."""
+def state_space(
+    assembly: Assembly, speed_m_s: float, dead_band_slopes: FloatArray | None = None
+) -> StateSpace:
+    """Linearise an assembly about the static equilibrium at speed ``speed_m_s`` (m/s).
+
+    Args:
+        assembly: the vehicle.
+        speed_m_s: speed (m/s), > 0.
+        dead_band_slopes: slopes (N/m) of the dead bands at the operating point
+            (m_dead,), e.g. about a steady curving state
+            (:func:`~susp_bo.rig.linear_curving.operating_points`); None: at u = 0.
+    """
     if not speed_m_s > 0:
         raise ValueError(f"speed_m_s: got {speed_m_s}; must be > 0 m/s")
     n, n_in = assembly.n_dofs, assembly.n_inputs
@@ -77,6 +89,8 @@ def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
     c_in = np.zeros((n, n_in))
     for elements in (assembly.springs, assembly.dead_bands):
         g, h, slope = elements.group.coordinates, elements.group.inputs, elements.slope()
+        if dead_band_slopes is not None and elements is assembly.dead_bands:
+            slope = np.asarray(dead_band_slopes, dtype=np.float64)
         k += g.T @ (slope[:, None] * g)
         k_in -= g.T @ (slope[:, None] * h)
     g, h, slope = (
@@ -195,9 +209,91 @@ class LinearisedRig:
             tuple, tuple[object, tuple[ComplexArray, ComplexArray], tuple[int, int]]
         ] = {}
 
-    def _system(self, parameters: Mapping[str, float] | None, speed_m_s: float) -> StateSpace:
+    def _system(
+        self,
+        parameters: Mapping[str, float] | None,
+        speed_m_s: float,
+        dead_band_slopes: FloatArray | None = None,
+    ) -> StateSpace:
         spec = self.spec.with_parameters(parameters)
-        return state_space(build_assembly(spec), speed_m_s)
+        return state_space(build_assembly(spec), speed_m_s, dead_band_slopes)
+
+    def operating_points(
+        self,
+        design: TrackDesign,
+        parameters: Mapping[str, float] | None = None,
+        speed_m_s: float | None = None,
+    ) -> list[OperatingPoint]:
+        """Steady curving states along the recorded stretch of a default run on ``design``.
+
+        The car runs at constant speed with its rearmost axle at chainage 0 at t = 0;
+        the recorded stretch follows the warm-up (the rig's simulation settings).
+
+        Raises:
+            LinearModelNotApplicable: a curve puts a flange or bump stop into contact.
+            DesignError: the design does not cover the run.
+        """
+        sim = self.spec.simulation
+        speed = sim.speed_m_s if speed_m_s is None else float(speed_m_s)
+        assembly = build_assembly(self.spec.with_parameters(parameters))
+        start = -float(np.min(assembly.axle_positions_m))
+        return operating_points(
+            assembly,
+            design,
+            speed,
+            start + speed * sim.warm_up_s,
+            start + speed * (sim.warm_up_s + sim.duration_s),
+        )
+
+    def steady_curving(
+        self,
+        radius_m: float,
+        cant_m: float,
+        parameters: Mapping[str, float] | None = None,
+        speed_m_s: float | None = None,
+        direction: str = "left",
+    ) -> dict[str, object]:
+        """Quasi-static state of the vehicle in a steady curve (nonlinear dead bands).
+
+        Args:
+            radius_m: curve radius (m), >= 150.
+            cant_m: cant on the outer rail (m), 0 … 0.18.
+            parameters: named parameter values (default: the rig's).
+            speed_m_s: speed (default: the rig's).
+            direction: ``left`` or ``right``.
+
+        Returns:
+            ``q`` (n,) coordinates (deviations from the reference frames, by name),
+            ``sensors`` (C,) quasi-static readings in m/s² (specific force in the body
+            frame: design term plus gravity pick-up of the body roll),
+            ``dead_bands`` (m_dead,) deflections in m, by name.
+        """
+        from susp_bo.rig.line_file import design_from_segments
+
+        speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
+        assembly = build_assembly(self.spec.with_parameters(parameters))
+        length = 4.0 * float(np.ptp(assembly.axle_positions_m)) + 10.0
+        design = design_from_segments(
+            [
+                {
+                    "type": "curve",
+                    "length_m": length,
+                    "radius_m": radius_m,
+                    "cant_mm": cant_m * 1000.0,
+                    "direction": direction,
+                }
+            ],
+            source="steady_curving",
+        )
+        q, u, terms = point_state(
+            assembly, design, 0.5 * length, speed, self.spec.with_parameters(parameters).sensors
+        )
+        sensors = assembly.sensor_displacement @ q + terms
+        return {
+            "q": dict(zip(assembly.dof_names, q.tolist())),
+            "sensors": dict(zip(assembly.channels, sensors.tolist())),
+            "dead_bands": dict(zip(assembly.dead_bands.group.names, u.tolist())),
+        }
 
     def eigenvalues(
         self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
@@ -278,6 +374,7 @@ class LinearisedRig:
         psd: TrackPSD | None = None,
         speed_m_s: float | None = None,
         components: tuple[str, ...] = INPUTS_PER_AXLE,
+        design: TrackDesign | None = None,
     ) -> FloatArray:
         """One-sided acceleration PSD of every sensor, (F x C) (m/s²)²/Hz, on random track.
 
@@ -287,11 +384,37 @@ class LinearisedRig:
             psd: track spectra (default: the rig's track quality).
             speed_m_s: constant speed (default: the rig's).
             components: track inputs to include (``vertical``, ``cross_level``, ``alignment``).
+            design: a line with curves: the PSD is the time-weighted mean over the
+                operating points of the recorded stretch (:meth:`operating_points`);
+                None is tangent track.
+
+        Raises:
+            LinearModelNotApplicable: the design puts a dead band into contact.
         """
+        if design is not None:
+            points = self.operating_points(design, parameters, speed_m_s)
+            return sum(
+                point.weight
+                * self._psd(
+                    frequencies_hz, parameters, psd, speed_m_s, components, point.dead_band_slopes
+                )
+                for point in points
+            )
+        return self._psd(frequencies_hz, parameters, psd, speed_m_s, components)
+
+    def _psd(
+        self,
+        frequencies_hz: FloatArray,
+        parameters: Mapping[str, float] | None,
+        psd: TrackPSD | None,
+        speed_m_s: float | None,
+        components: tuple[str, ...],
+        dead_band_slopes: FloatArray | None = None,
+    ) -> FloatArray:
         speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
         psd = TrackPSD(self.spec.simulation.track_quality) if psd is None else psd
         fine = np.asarray(frequencies_hz, dtype=np.float64)
-        system = self._system(parameters, speed)
+        system = self._system(parameters, speed, dead_band_slopes)
         transfer = sensor_transfer(system, fine, self.spec.simulation.sample_rate_hz)
         axles = system.assembly.axle_positions_m
         omega = 2.0 * np.pi * fine
@@ -317,6 +440,7 @@ class LinearisedRig:
         psd: TrackPSD | None = None,
         speed_m_s: float | None = None,
         settings: SpectrumSettings | None = None,
+        design: TrackDesign | None = None,
     ) -> Spectra:
         """Expected Welch log-amplitude spectra on random track (the fast path).
 
@@ -325,6 +449,9 @@ class LinearisedRig:
             psd: track spectra (default: the rig's track quality).
             speed_m_s: constant speed (default: the rig's).
             settings: spectrum settings (default: the rig's).
+            design: a line with curves (see :meth:`psd`); the quasi-static part is
+                not in these spectra, as it is removed from measured and PyBullet
+                signals before theirs.
 
         Returns:
             Spectra (C x F) in ln((m/s²)/√Hz): the PSD convolved with the Hann
@@ -334,7 +461,7 @@ class LinearisedRig:
         resolution = 1.0 / settings.segment_s
         step = resolution / 8.0
         fine = np.arange(1, int(np.ceil((settings.f_max_hz + 6 * resolution) / step)) + 1) * step
-        power = self.psd(fine, parameters, psd, speed_m_s)
+        power = self.psd(fine, parameters, psd, speed_m_s, design=design)
         # expected Welch estimate at the Welch bins, then the band average of spectra.py
         bins = np.arange(0.0, settings.f_max_hz + 2 * resolution, resolution)
         both = np.concatenate([-fine[::-1], fine])

@@ -37,7 +37,7 @@ class RigResponse:
         settings: default spectrum settings (the rig's), used by :meth:`spectra`.
         quasi_static_m_s2: on a line with a track design, the design's quasi-static
             specific force at every sensor (C x n) m/s²
-            (:func:`~susp_bo.rig.design.quasi_static_signals`), removed from the
+            (:func:`~susp_bo.rig.curving.reference_specific_force`), removed from the
             signals before the spectra; None on tangent track.
     """
 

@@ -23,8 +23,13 @@ import pybullet
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import Assembly, build_assembly
-from susp_bo.rig.curving import DesignInputs, design_inputs, steady_state
-from susp_bo.rig.design import TrackDesign, quasi_static_signals
+from susp_bo.rig.curving import (
+    DesignInputs,
+    design_inputs,
+    reference_specific_force,
+    steady_state,
+)
+from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.dynamics import ForceModel
 from susp_bo.rig.response import RigResponse, SimulationFailed
 from susp_bo.rig.sensors import sample_decimated
@@ -316,9 +321,7 @@ class Rig:
         if terms is not None:
             recorded = terms.sensors[::per_sample][start:]  # (n_k x C) at the record steps
             signals = signals + (0.5 * (recorded[1:] + recorded[:-1])).T
-            quasi_static = quasi_static_signals(
-                design, profile, time, spec.sensors, float(np.min(assembly.axle_positions_m))
-            )
+            quasi_static = reference_specific_force(assembly, spec.sensors, design, profile, time)
         return RigResponse(
             time,
             assembly.channels,
@@ -362,9 +365,7 @@ def _design_start(
     car = -rear + profile.distance_m(times)  # rearmost axle at s = 0 at t = 0
     xs = [float(b.cg_m[0]) for b in assembly.bodies] + [s.position_m[0] for s in spec.sensors]
     design.check_covers(float(car[0] + min(xs)), float(car[-1] + max(xs)))
-    terms = design_inputs(
-        assembly, design, car, profile.speed_at(times), time_step_s, spec.sensors
-    )
+    terms = design_inputs(assembly, design, car, profile.speed_at(times), time_step_s, spec.sensors)
     q0, _ = steady_state(assembly, terms.offsets[0], terms.loads[0])
     z0 = np.concatenate([q0, np.zeros(assembly.n_inputs)]) + terms.offsets[0]
     return terms, forces.series_positions(z0), q0
