@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from susp_bo.rig.design import MAX_CANT_M, DesignError, TrackDesign
+from susp_bo.rig.design import MAX_CANT_M, MAX_GRADIENT, MIN_RADIUS_M, DesignError, TrackDesign
 
 _KEYS = {
     "tangent": {"type", "length_m", "gradient_permille"},
@@ -67,11 +67,19 @@ def _segment_state(where: str, segment: Mapping[str, Any]) -> tuple[float, float
             f"{where}.gradient_permille: got {gradient:g}; that is below 0.1 per mille — a "
             "fraction given as per mille? (12 per mille is written 12.0)"
         )
+    if abs(gradient) > MAX_GRADIENT * 1000.0:
+        raise DesignError(
+            f"{where}.gradient_permille: got {gradient:g}; above the maximum "
+            f"{MAX_GRADIENT * 1000:.0f} per mille (TSI INF 4.2.3.3)"
+        )
     if segment["type"] == "tangent":
         return length, 0.0, 0.0, gradient / 1000.0
     radius = _number(f"{where}.radius_m", segment.get("radius_m"), "m")
-    if radius <= 0:
-        raise DesignError(f"{where}.radius_m: got {radius:g} m; must be > 0 m")
+    if radius < MIN_RADIUS_M:
+        raise DesignError(
+            f"{where}.radius_m: got {radius:g} m; below the minimum {MIN_RADIUS_M:g} m for this "
+            "vehicle class (TSI LOC&PAS 4.2.3.5.2)"
+        )
     cant_mm = _number(f"{where}.cant_mm", segment.get("cant_mm", 0.0), "mm")
     if cant_mm < 0:
         raise DesignError(
@@ -82,6 +90,11 @@ def _segment_state(where: str, segment: Mapping[str, Any]) -> tuple[float, float
         raise DesignError(
             f"{where}.cant_mm: got {cant_mm:g}; below 1 mm suggests metres given as "
             f"millimetres (cant_mm is in mm, e.g. 120.0; at most {MAX_CANT_M * 1000:.0f})"
+        )
+    if cant_mm > MAX_CANT_M * 1000.0:
+        raise DesignError(
+            f"{where}.cant_mm: got {cant_mm:g} mm; above the allowed maximum "
+            f"{MAX_CANT_M * 1000:.0f} mm for standard gauge (TSI INF 4.2.4.2, EN 13803)"
         )
     direction = segment.get("direction")
     if direction not in ("left", "right"):
