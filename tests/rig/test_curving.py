@@ -193,7 +193,7 @@ def test_flange_contact_when_the_curve_demands_it(reference_spec: RigSpec) -> No
     dt = spec.simulation.time_step_s
     t = np.arange(round(20.0 / dt) + 1) * dt
     profile = SpeedProfile.constant(speed, 20.0)
-    terms, stroke0, q0 = _design_start(spec, assembly, forces, design, profile, t, dt)
+    terms, stroke0, _ = _design_start(spec, assembly, forces, design, profile, t, dt)
     zeros = np.zeros((4, t.size))
     world = VehicleWorld(dt)
     try:
