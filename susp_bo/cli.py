@@ -79,6 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--speed", type=float, help="speed in m/s")
     simulate.add_argument("--duration", type=float, help="simulated time in s")
     simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--line", help="line design file (TOML segments: curves, cant, grades)")
     simulate.set_defaults(handler=_simulate)
 
     synth = sub.add_parser(
@@ -92,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--nu", type=int, default=3, help="number of measured runs")
     synth.add_argument("--seed", type=int, default=0)
     synth.add_argument("--noise", type=float, default=0.0, help="sensor noise, m/s^2 rms")
+    synth.add_argument("--line", help="line design file (TOML segments: curves, cant, grades)")
     synth.set_defaults(handler=_synth)
 
     calibrate = sub.add_parser("calibrate", help="the four steps: design, kriging, EGO, MCMC")

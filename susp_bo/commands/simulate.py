@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, read_parameter_file
+from susp_bo.commands._common import output_folder, read_line_file, read_parameter_file
 from susp_bo.json_files import write_json
 from susp_bo.rig.simulator import Rig, synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
@@ -45,6 +45,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     from susp_bo.response_plots import plot_response
 
     spec, _ = prepared_spec(args)
+    design = read_line_file(getattr(args, "line", None), spec)
     out = output_folder(args.out)
     settings = spec.simulation
     speed = SpeedProfile.constant(settings.speed_m_s, settings.warm_up_s + settings.duration_s)
@@ -55,7 +56,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     with Rig(spec) as rig:
-        response = rig.simulate(geometry, speed)
+        response = rig.simulate(geometry, speed, design=design)
     spectra = response.spectra(spec.spectrum)
     np.savez_compressed(
         out / "signals.npz",
@@ -70,6 +71,7 @@ def run_simulate(args: argparse.Namespace) -> int:
             "parameters": spec.parameter_values(),
             "speed_m_s": settings.speed_m_s,
             "seed": args.seed,
+            "line": str(args.line) if getattr(args, "line", None) else None,
             "frequencies_hz": spectra.frequencies_hz.tolist(),
             "channels": list(spectra.channels),
             "log_amplitude": spectra.log_amplitude.tolist(),

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._common import output_folder, read_parameter_file
+from susp_bo.commands._common import output_folder, read_line_file, read_parameter_file
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.discrepancy.effects import with_effect
@@ -60,10 +60,18 @@ def run_synth(args: argparse.Namespace) -> int:
         raise UsageError(f"--noise: got {args.noise}; expected >= 0 m/s^2")
     if args.speed is not None and not args.speed > 0:
         raise UsageError(f"--speed: got {args.speed}; expected > 0 m/s")
+    line_spec = spec.with_simulation(speed_m_s=args.speed) if args.speed is not None else spec
+    design = read_line_file(getattr(args, "line", None), line_spec)
     out = output_folder(args.out)
     print(f"susp-bo synth: {args.nu} runs of {spec.name}, seed {args.seed}", file=sys.stderr)
     runs = synthesize_runs(
-        spec, truth, nu=args.nu, seed=args.seed, noise_m_s2=args.noise, speed_m_s=args.speed
+        spec,
+        truth,
+        nu=args.nu,
+        seed=args.seed,
+        noise_m_s2=args.noise,
+        speed_m_s=args.speed,
+        design=design,
     )
     for index, run in enumerate(runs):
         save_run(run, out / f"run_{index:03d}.h5")
@@ -75,6 +83,7 @@ def run_synth(args: argparse.Namespace) -> int:
             "seed": args.seed,
             "nu": args.nu,
             "noise_m_s2": args.noise,
+            "line": str(args.line) if getattr(args, "line", None) else None,
             "effects": [
                 {
                     "name": name,

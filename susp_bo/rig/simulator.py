@@ -47,6 +47,7 @@ __all__ = [
     "axle_span_m",
     "excitation_for_run",
     "synthetic_track",
+    "synthetic_track_length_m",
 ]
 
 
@@ -114,11 +115,20 @@ def synthetic_track(
     quality: str | None = None,
 ) -> TrackGeometry:
     """A German-PSD track long enough for one default run of ``spec`` (seeded)."""
+    length = synthetic_track_length_m(spec, speed_m_s, duration_s)
+    return TrackGeometry.synthetic(
+        quality=quality or spec.simulation.track_quality, length_m=length, seed=seed
+    )
+
+
+def synthetic_track_length_m(
+    spec: RigSpec, speed_m_s: float | None = None, duration_s: float | None = None
+) -> float:
+    """Length (m) of :func:`synthetic_track`: the run, the axle span and 10 m to spare."""
     sim = spec.simulation
     speed = sim.speed_m_s if speed_m_s is None else speed_m_s
     duration = sim.duration_s if duration_s is None else duration_s
-    length = speed * (sim.warm_up_s + duration) + axle_span_m(spec) + 10.0
-    return TrackGeometry.synthetic(quality=quality or sim.track_quality, length_m=length, seed=seed)
+    return speed * (sim.warm_up_s + duration) + axle_span_m(spec) + 10.0
 
 
 def integrate(
