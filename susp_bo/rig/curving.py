@@ -226,7 +226,7 @@ def steady_state(
     assembly: Assembly,
     offsets: FloatArray,
     loads: FloatArray,
-    max_iterations: int = 50,
+    max_iterations: int = 60,
 ) -> tuple[FloatArray, FloatArray]:
     """Quasi-static equilibrium ``q`` (n,) under design offsets and loads, dead bands nonlinear.
 
@@ -237,18 +237,23 @@ def steady_state(
 
     Args:
         assembly: the vehicle.
-        offsets: ``[d, x_d]`` (n + n_in,) at the instant.
-        loads: generalised loads (n,) at the instant.
+        offsets: ``[d, x_d]`` (n + n_in,) at the instant, or (T x (n + n_in)) for T
+            instants solved together.
+        loads: generalised loads (n,) at the instant, or (T x n).
 
     Returns:
-        ``(q, u_dead)``: the equilibrium (n,) and the dead-band deflections there
-        (m_dead,), from which flange or bump-stop contact is read.
+        ``(q, u_dead)``: the equilibrium (n,) or (T x n) and the dead-band
+        deflections there (m_dead,) or (T x m_dead), from which flange or
+        bump-stop contact is read.
 
     Raises:
         RuntimeError: Newton's method did not converge.
     """
     from susp_bo.rig.elements import dead_band_force
 
+    single = np.ndim(offsets) == 1
+    offsets = np.atleast_2d(np.asarray(offsets, dtype=np.float64))
+    loads = np.atleast_2d(np.asarray(loads, dtype=np.float64))
     n, n_in = assembly.n_dofs, assembly.n_inputs
     springs, dead = assembly.springs, assembly.dead_bands
 
@@ -258,22 +263,26 @@ def steady_state(
     gs, gd = rows(springs.group), rows(dead.group)
     creep = assembly.contact.matrices(n, n_in, 1.0)["stiffness"]
     k_springs = gs[:, :n].T @ (springs.stiffness[:, None] * gs[:, :n])
-    q = np.zeros(n)
+    q = np.zeros((offsets.shape[0], n))
     for _ in range(max_iterations):
-        z = np.concatenate([q, np.zeros(n_in)]) + offsets
-        u_s = gs @ z
-        u_d = gd @ z
+        z = np.hstack([q, np.zeros((q.shape[0], n_in))]) + offsets
+        u_s = z @ gs.T
+        u_d = z @ gd.T
         f_d = dead_band_force(u_d, dead.stiffness, dead.gap, dead.smoothing)
-        residual = loads - gs[:, :n].T @ (springs.stiffness * u_s) - gd[:, :n].T @ f_d - creep @ q
-        a_plus = 1.0 / (1.0 + np.exp(-(u_d - dead.gap) / dead.smoothing))
-        a_minus = 1.0 / (1.0 + np.exp(-(-u_d - dead.gap) / dead.smoothing))
-        slope = dead.stiffness * (a_plus + a_minus)
-        jacobian = k_springs + gd[:, :n].T @ (slope[:, None] * gd[:, :n]) + creep
-        step = np.linalg.solve(jacobian, residual)
+        residual = loads - (springs.stiffness * u_s) @ gs[:, :n] - f_d @ gd[:, :n] - q @ creep.T
+        with np.errstate(over="ignore"):
+            a_plus = 1.0 / (1.0 + np.exp(-(u_d - dead.gap) / dead.smoothing))
+            a_minus = 1.0 / (1.0 + np.exp(-(-u_d - dead.gap) / dead.smoothing))
+        slope = dead.stiffness * (a_plus + a_minus)  # (T x m_dead)
+        jacobian = (
+            k_springs[None] + np.einsum("mi,tm,mj->tij", gd[:, :n], slope, gd[:, :n]) + creep[None]
+        )
+        step = np.linalg.solve(jacobian, residual[:, :, None])[:, :, 0]
         q = q + step
         if np.max(np.abs(step)) < 1e-12:
-            z = np.concatenate([q, np.zeros(n_in)]) + offsets
-            return q, gd @ z
+            z = np.hstack([q, np.zeros((q.shape[0], n_in))]) + offsets
+            u_d = z @ gd.T
+            return (q[0], u_d[0]) if single else (q, u_d)
     raise RuntimeError(f"steady_state: Newton did not converge in {max_iterations} iterations")
 
 

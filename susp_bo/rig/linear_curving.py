@@ -117,27 +117,32 @@ def operating_points(
     count = max(2, int(np.ceil((end_m - start_m) / spacing_m)) + 1)
     dead = assembly.dead_bands
     limit = dead.gap - CONTACT_MARGIN * dead.smoothing
+    chainages = np.linspace(start_m, end_m, count)
+    terms = design_inputs(assembly, design, chainages, np.full(count, float(speed_m_s)), 1.0)
+    curved = np.any(terms.offsets, axis=1) | np.any(terms.loads, axis=1)
+    q = np.zeros((count, assembly.n_dofs))
+    u = np.zeros((count, dead.group.size))
+    if np.any(curved):
+        q[curved], u[curved] = steady_state(assembly, terms.offsets[curved], terms.loads[curved])
+    over = np.abs(u) > limit
+    if np.any(over):
+        k, i = np.argwhere(over)[0]
+        raise LinearModelNotApplicable(
+            f"linearised rig: at car chainage {chainages[k]:.1f} m the steady curving state "
+            f"puts {dead.group.names[i]} at {u[k, i] * 1000:.1f} mm, at or beyond its clearance "
+            f"({dead.gap[i] * 1000:.1f} mm less {CONTACT_MARGIN:g} smoothing lengths); the "
+            "linear model does not apply in contact — use the PyBullet rig (Rig) for this line"
+        )
     groups: dict[bytes, list] = {}
-    for chainage in np.linspace(start_m, end_m, count):
-        q, u, _ = point_state(assembly, design, float(chainage), speed_m_s)
-        over = np.abs(u) > limit
-        if np.any(over):
-            i = int(np.argmax(over))
-            raise LinearModelNotApplicable(
-                f"linearised rig: at car chainage {chainage:.1f} m the steady curving state puts "
-                f"{dead.group.names[i]} at {u[i] * 1000:.1f} mm, at or beyond its clearance "
-                f"({dead.gap[i] * 1000:.1f} mm less {CONTACT_MARGIN:g} smoothing lengths); the "
-                "linear model does not apply in contact — use the PyBullet rig (Rig) for this line"
-            )
-        tangent = not np.any(u) and not np.any(q)
-        slopes = None if tangent else _slopes(assembly, u)
+    for k in range(count):
+        slopes = _slopes(assembly, u[k]) if curved[k] else None
         # buckets of 0.2 % of each dead band's full stiffness; a bucket's mean state is used
         key = (
             b"tangent"
             if slopes is None
             else np.round(slopes / (BUCKET * dead.stiffness)).astype(np.int64).tobytes()
         )
-        groups.setdefault(key, []).append((slopes, q, u))
+        groups.setdefault(key, []).append((slopes, q[k], u[k]))
     points = []
     for members in sorted(groups.values(), key=lambda m: m[0][0] is not None):
         slopes = None if members[0][0] is None else np.mean([m[0] for m in members], axis=0)
