@@ -24,11 +24,17 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
+import scipy.signal
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import INPUTS_PER_AXLE, Assembly, build_assembly
 from susp_bo.rig.design import TrackDesign
-from susp_bo.rig.linear_curving import OperatingPoint, operating_points, point_state
+from susp_bo.rig.linear_curving import (
+    OperatingPoint,
+    design_signals,
+    operating_points,
+    point_state,
+)
 from susp_bo.rig.response import RigResponse
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import Spectra, SpectrumSettings
@@ -449,9 +455,11 @@ class LinearisedRig:
             psd: track spectra (default: the rig's track quality).
             speed_m_s: constant speed (default: the rig's).
             settings: spectrum settings (default: the rig's).
-            design: a line with curves (see :meth:`psd`); the quasi-static part is
-                not in these spectra, as it is removed from measured and PyBullet
-                signals before theirs.
+            design: a line with curves: the random part linearised about the
+                operating points along it (see :meth:`psd`) plus the Welch PSD of the
+                deterministic response to the design (:meth:`design_welch`: roll-out,
+                transients at the transitions) — the design's reference specific force
+                is removed, as from measured and PyBullet signals.
 
         Returns:
             Spectra (C x F) in ln((m/s²)/√Hz): the PSD convolved with the Hann
@@ -476,9 +484,62 @@ class LinearisedRig:
                 shape = np.sinc(offset) / np.where(near_one, 1.0, 1 - offset**2)
                 shape = np.where(near_one, 0.5, shape)
                 welch += (settings.segment_s * shape**2 / 1.5)[:, None] * line_power[None, :]
+        if design is not None:
+            welch += self.design_welch(design, parameters, speed, settings)[: bins.size]
         welch[bins == 0] = 0.0
         band = _band_average(welch.T, resolution, settings.band_edges_hz())
         return Spectra(settings.frequencies_hz(), self.spec.channels, 0.5 * np.log(band))
+
+    def design_welch(
+        self,
+        design: TrackDesign,
+        parameters: Mapping[str, float] | None = None,
+        speed_m_s: float | None = None,
+        settings: SpectrumSettings | None = None,
+        time_step_s: float = 0.005,
+    ) -> FloatArray:
+        """Welch PSD (K x C) of the deterministic part the design leaves in the signals.
+
+        The vehicle's response to the design of a default run (rearmost axle at
+        chainage 0 at t = 0, the rig's warm-up and duration), minus the removed
+        reference specific force (:func:`~susp_bo.rig.linear_curving.design_signals`),
+        linearised about the run's main operating point; Welch-estimated over the
+        recorded part exactly as the signals are (same segments, window and
+        detrending). Being deterministic, it adds to the expected PSD of the random
+        part. Bins ``k / segment_s`` (K = segment_s fs / 2 + 1).
+        """
+        settings = self.spec.spectrum if settings is None else settings
+        sim = self.spec.simulation
+        speed = sim.speed_m_s if speed_m_s is None else float(speed_m_s)
+        points = self.operating_points(design, parameters, speed)
+        main = max(points, key=lambda point: point.weight)
+        system = self._system(parameters, speed, main.dead_band_slopes)
+        rate = sim.sample_rate_hz
+        total = round((sim.warm_up_s + sim.duration_s) * rate)
+        signals = design_signals(
+            system.assembly,
+            system,
+            design,
+            speed,
+            rate,
+            total,
+            self.spec.with_parameters(parameters).sensors,
+            main.dead_band_slopes,
+            time_step_s,
+        )[:, round(sim.warm_up_s * rate) :]
+        nperseg = min(max(round(settings.segment_s * rate), 2), signals.shape[1])
+        noverlap = min(round(settings.overlap * nperseg), nperseg - 1)
+        _, psd = scipy.signal.welch(
+            signals,
+            fs=rate,
+            window="hann",
+            nperseg=nperseg,
+            noverlap=noverlap,
+            detrend="constant",
+            scaling="density",
+            axis=-1,
+        )
+        return psd.T
 
     def periodic_lines(
         self, parameters: Mapping[str, float] | None, speed_m_s: float

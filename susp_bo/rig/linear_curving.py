@@ -155,3 +155,111 @@ def operating_points(
             )
         )
     return points
+
+
+def design_forcing(
+    assembly: Assembly,
+    system: object,
+    terms: object,
+    dead_band_slopes: FloatArray | None = None,
+) -> FloatArray:
+    """The design's forcing ``F(t)`` of the state equation ``ż = A z + B x + F`` (T x size).
+
+    Every element sees ``G (q + d) + H (x + x_d)`` (see :mod:`susp_bo.rig.curving`):
+    springs and dead bands (at ``dead_band_slopes``, default their slope at 0), dampers
+    on the offset rates, series elements on their spring and stroke; plus the loads.
+
+    Args:
+        assembly: the vehicle.
+        system: its :class:`~susp_bo.rig.linear.StateSpace` (same slopes).
+        terms: the :class:`~susp_bo.rig.curving.DesignInputs` at the T instants.
+        dead_band_slopes: the dead-band slopes the system was built with.
+    """
+    n = assembly.n_dofs
+
+    def rows(group: object) -> FloatArray:
+        return np.hstack([group.coordinates, group.inputs])  # type: ignore[attr-defined]
+
+    springs, dead, dampers, series = (
+        assembly.springs,
+        assembly.dead_bands,
+        assembly.dampers,
+        assembly.series,
+    )
+    slopes = dead.slope() if dead_band_slopes is None else dead_band_slopes
+    g_k, g_d, g_c, g_s = (
+        rows(springs.group),
+        rows(dead.group),
+        rows(dampers.group),
+        rows(series.group),
+    )
+    stiffness = g_k[:, :n].T @ (springs.stiffness[:, None] * g_k)
+    stiffness += g_d[:, :n].T @ (slopes[:, None] * g_d)
+    stiffness += g_s[:, :n].T @ (series.stiffness[:, None] * g_s)
+    damping = g_c[:, :n].T @ (dampers.slope()[:, None] * g_c)
+    offsets, rates = terms.offsets, terms.rates  # type: ignore[attr-defined]
+    force = terms.loads - offsets @ stiffness.T - rates @ damping.T  # type: ignore[attr-defined]
+    size = system.a.shape[0]  # type: ignore[attr-defined]
+    out = np.zeros((offsets.shape[0], size))
+    out[:, n : 2 * n] = force / assembly.mass_diagonal
+    out[:, 2 * n :] = (offsets @ g_s.T) * (series.stiffness / series.damping)
+    return out
+
+
+def design_signals(
+    assembly: Assembly,
+    system: object,
+    design: TrackDesign,
+    speed_m_s: float,
+    sample_rate_hz: float,
+    n_samples: int,
+    sensors: tuple[object, ...],
+    dead_band_slopes: FloatArray | None = None,
+    time_step_s: float | None = None,
+) -> FloatArray:
+    """The linear vehicle's response to the design, minus its removed part, (C x n_samples).
+
+    The deterministic part of the sensors on a designed line — the quasi-static
+    roll-out and offsets plus the transients at the transitions — that remains
+    after :func:`~susp_bo.rig.curving.reference_specific_force` is removed: the
+    state is the quasi-static ``z_qs = −A⁻¹ F(t)`` plus the dynamic deviation
+    ``ż_dyn = A z_dyn − ż_qs`` from rest at t = 0 (the rig starts in the steady
+    state), solved by FFT with zero padding. Sensors as in the time-domain rig:
+    mean acceleration over each sample interval plus the averaged gravity pick-up,
+    samples at the interval centres ``(k + 1/2) / fs``, the car's rearmost axle at
+    chainage 0 at t = 0, constant speed.
+
+    Args:
+        assembly: the vehicle.
+        system: its :class:`~susp_bo.rig.linear.StateSpace`.
+        design: the line.
+        speed_m_s: constant speed (m/s).
+        sample_rate_hz: output rate (Hz).
+        n_samples: output samples (from t = 0).
+        sensors: sensor specs in channel order.
+        dead_band_slopes: the dead-band slopes the system was built with.
+        time_step_s: step of the forcing (s), a divisor of ``1 / sample_rate_hz`` (the
+            transition ends are kinks: a fine step resolves their transients); default
+            the sample interval.
+    """
+    interval = 1.0 / sample_rate_hz
+    per_sample = 1 if time_step_s is None else max(1, round(interval / time_step_s))
+    dt = interval / per_sample
+    times = np.arange(n_samples * per_sample + 1) * dt
+    car = -float(np.min(assembly.axle_positions_m)) + speed_m_s * times
+    terms = design_inputs(assembly, design, car, np.full(times.size, speed_m_s), dt, sensors)
+    forcing = design_forcing(assembly, system, terms, dead_band_slopes)
+    a = system.a  # type: ignore[attr-defined]
+    quasi_static = -np.linalg.solve(a, forcing.T)  # (size x T)
+    drive = -np.gradient(quasi_static, dt, axis=1)  # −ż_qs, nonzero in transitions only
+    padded = 2 * times.size
+    spectrum = np.fft.rfft(drive, n=padded, axis=1)
+    omega = 2.0 * np.pi * np.fft.rfftfreq(padded, dt)
+    values, vectors = np.linalg.eig(a)
+    modal = np.linalg.solve(vectors, spectrum) / (1j * omega[None, :] - values[:, None])
+    dynamic = np.fft.irfft(vectors @ modal, n=padded, axis=1)[:, : times.size]
+    state = (quasi_static + dynamic)[:, ::per_sample]  # at the sample-interval ends
+    n = assembly.n_dofs
+    velocity = assembly.sensor_acceleration @ state[n : 2 * n]  # (C x n_samples + 1)
+    position = assembly.sensor_displacement @ state[:n]
+    return np.diff(velocity, axis=1) / interval + 0.5 * (position[:, 1:] + position[:, :-1])
