@@ -254,3 +254,52 @@ def test_a_design_shorter_than_the_run_fails_before_any_step(
         rig.simulate(short_track, design=short)
     with pytest.raises(DesignError, match="recorded stretch"):
         LinearisedRig(short_spec).spectra(design=short)
+
+
+def test_linear_response_to_the_design_matches_pybullet(short_spec: RigSpec) -> None:
+    """S-curve with transitions on smooth track: what remains after the removal, both ways."""
+    from susp_bo.rig.linear import state_space
+    from susp_bo.rig.linear_curving import design_signals
+
+    speed = short_spec.simulation.speed_m_s
+    design = design_from_segments(
+        [
+            {"type": "tangent", "length_m": 200.0},
+            {"type": "transition", "length_m": 250.0},
+            {
+                "type": "curve",
+                "length_m": 600.0,
+                "radius_m": 7000.0,
+                "cant_mm": 150.0,
+                "direction": "left",
+            },
+            {"type": "transition", "length_m": 250.0},
+            {
+                "type": "curve",
+                "length_m": 1000.0,
+                "radius_m": 7000.0,
+                "cant_mm": 100.0,
+                "direction": "right",
+            },
+        ]
+    )
+    with Rig(short_spec, linear_elements=True) as rig:
+        response = rig.simulate(_smooth_track(2000.0), design=design)
+    remaining = response.accelerations_m_s2 - response.quasi_static_m_s2
+    assembly = build_assembly(short_spec)
+    rate = short_spec.simulation.sample_rate_hz
+    total = round(20.0 * rate)
+    linear = design_signals(
+        assembly,
+        state_space(assembly, speed),
+        design,
+        speed,
+        rate,
+        total,
+        short_spec.sensors,
+        time_step_s=short_spec.simulation.time_step_s,
+    )[:, round(4.0 * rate) :]
+    for c, channel in enumerate(short_spec.channels):
+        if channel.startswith("carbody"):  # roll-out and transition transients, ≈ 0.1 m/s²
+            peak = np.max(np.abs(remaining[c]))
+            assert np.max(np.abs(linear[c] - remaining[c])) < 0.05 * peak, channel
