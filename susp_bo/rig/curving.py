@@ -44,13 +44,18 @@ specific force by a vertical sensor through body roll.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import GRAVITY_M_S2, Assembly
+from susp_bo.rig.builder import Body
 from susp_bo.rig.design import TrackDesign
+from susp_bo.rig.elements import ElementGroup
+from susp_bo.rig.spec import SensorSpec
+from susp_bo.rig.track import SpeedProfile
 
 FloatArray = NDArray[np.float64]
 
@@ -105,7 +110,7 @@ def design_inputs(
     car_chainage_m: FloatArray,
     speed_m_s: FloatArray,
     time_step_s: float,
-    sensors: tuple[object, ...] = (),
+    sensors: Sequence[SensorSpec] = (),
 ) -> DesignInputs:
     """The design terms of a run (see the module docstring).
 
@@ -175,18 +180,18 @@ def design_inputs(
         )
     references: dict[str, dict[str, FloatArray]] = {}
 
-    def place(body: object, ref: dict[str, FloatArray]) -> None:
-        y, z, roll, pitch, yaw = body.dofs  # type: ignore[attr-defined]
-        height = body.cg_m[2]  # type: ignore[attr-defined]
+    def place(body: Body, ref: dict[str, FloatArray]) -> None:
+        y, z, roll, pitch, yaw = body.dofs
+        height = body.cg_m[2]
         offsets[:, y] = ref["y"] - height * ref["roll"]  # rolled about the rail-level axis
         offsets[:, z] = ref["z"]
         offsets[:, roll] = ref["roll"]
         offsets[:, pitch] = -ref["z_slope"]
         offsets[:, yaw] = ref["y_slope"]
-        x = float(body.cg_m[0])  # type: ignore[attr-defined]
-        loads[:, y] = lateral_load(body.mass, x)  # type: ignore[attr-defined]
-        loads[:, z] = vertical_load(body.mass, x)  # type: ignore[attr-defined]
-        references[body.name] = ref  # type: ignore[attr-defined]
+        x = float(body.cg_m[0])
+        loads[:, y] = lateral_load(body.mass, x)
+        loads[:, z] = vertical_load(body.mass, x)
+        references[body.name] = ref
 
     def chord_reference(points: list[tuple[float, dict[str, FloatArray]]], at: float) -> dict:
         xs = np.array([p[0] for p in points])
@@ -211,9 +216,9 @@ def design_inputs(
     rates = np.gradient(offsets, time_step_s, axis=0) if T > 1 else np.zeros_like(offsets)
     sensor_terms = np.zeros((T, len(sensors)))
     for c, sensor in enumerate(sensors):
-        x = float(sensor.position_m[0])  # type: ignore[attr-defined]
-        roll = references.get(sensor.body, {}).get("roll", 0.0)  # type: ignore[attr-defined]
-        if sensor.direction == "lateral":  # type: ignore[attr-defined]
+        x = float(sensor.position_m[0])
+        roll = references.get(sensor.body, {}).get("roll", 0.0)
+        if sensor.direction == "lateral":
             sensor_terms[:, c] = v2 * design.curvature(s_c + x) * cos_c + GRAVITY_M_S2 * (
                 sin_c + roll
             )
@@ -257,8 +262,8 @@ def steady_state(
     n, n_in = assembly.n_dofs, assembly.n_inputs
     springs, dead = assembly.springs, assembly.dead_bands
 
-    def rows(group: object) -> FloatArray:
-        return np.hstack([group.coordinates, group.inputs])  # type: ignore[attr-defined]
+    def rows(group: ElementGroup) -> FloatArray:
+        return np.hstack([group.coordinates, group.inputs])
 
     gs, gd = rows(springs.group), rows(dead.group)
     creep = assembly.contact.matrices(n, n_in, 1.0)["stiffness"]
@@ -288,9 +293,9 @@ def steady_state(
 
 def reference_specific_force(
     assembly: Assembly,
-    sensors: tuple[object, ...],
+    sensors: Sequence[SensorSpec],
     design: TrackDesign,
-    speed: object,
+    speed: SpeedProfile,
     time_s: FloatArray,
 ) -> FloatArray:
     """Specific force each sensor reads on a vehicle riding its reference frames, (C x n_t).
@@ -312,6 +317,6 @@ def reference_specific_force(
             chainage 0 at t = 0 (the measured-run convention).
     """
     times = np.asarray(time_s, dtype=np.float64)
-    car = -float(np.min(assembly.axle_positions_m)) + speed.distance_m(times)  # type: ignore[attr-defined]
-    velocity = speed.speed_at(times)  # type: ignore[attr-defined]
+    car = -float(np.min(assembly.axle_positions_m)) + speed.distance_m(times)
+    velocity = speed.speed_at(times)
     return design_inputs(assembly, design, car, velocity, 1.0, sensors).sensors.T

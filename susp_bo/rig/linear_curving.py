@@ -20,14 +20,21 @@ deflection — use the PyBullet rig (:class:`~susp_bo.rig.simulator.Rig`) there.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import Assembly
-from susp_bo.rig.curving import design_inputs, steady_state
+from susp_bo.rig.curving import DesignInputs, design_inputs, steady_state
 from susp_bo.rig.design import TrackDesign
+from susp_bo.rig.elements import ElementGroup
+from susp_bo.rig.spec import SensorSpec
+
+if TYPE_CHECKING:
+    from susp_bo.rig.linear import StateSpace
 
 FloatArray = NDArray[np.float64]
 CONTACT_MARGIN = 3.0  # smoothing lengths below the gap counted as contact
@@ -67,7 +74,7 @@ def point_state(
     design: TrackDesign,
     car_chainage_m: float,
     speed_m_s: float,
-    sensors: tuple[object, ...] = (),
+    sensors: Sequence[SensorSpec] = (),
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Steady state at one car chainage: ``(q, dead-band deflections, sensor terms (C,))``.
 
@@ -159,8 +166,8 @@ def operating_points(
 
 def design_forcing(
     assembly: Assembly,
-    system: object,
-    terms: object,
+    system: StateSpace,
+    terms: DesignInputs,
     dead_band_slopes: FloatArray | None = None,
 ) -> FloatArray:
     """The design's forcing ``F(t)`` of the state equation ``ż = A z + B x + F`` (T x size).
@@ -177,8 +184,8 @@ def design_forcing(
     """
     n = assembly.n_dofs
 
-    def rows(group: object) -> FloatArray:
-        return np.hstack([group.coordinates, group.inputs])  # type: ignore[attr-defined]
+    def rows(group: ElementGroup) -> FloatArray:
+        return np.hstack([group.coordinates, group.inputs])
 
     springs, dead, dampers, series = (
         assembly.springs,
@@ -197,9 +204,9 @@ def design_forcing(
     stiffness += g_d[:, :n].T @ (slopes[:, None] * g_d)
     stiffness += g_s[:, :n].T @ (series.stiffness[:, None] * g_s)
     damping = g_c[:, :n].T @ (dampers.slope()[:, None] * g_c)
-    offsets, rates = terms.offsets, terms.rates  # type: ignore[attr-defined]
-    force = terms.loads - offsets @ stiffness.T - rates @ damping.T  # type: ignore[attr-defined]
-    size = system.a.shape[0]  # type: ignore[attr-defined]
+    offsets, rates = terms.offsets, terms.rates
+    force = terms.loads - offsets @ stiffness.T - rates @ damping.T
+    size = system.a.shape[0]
     out = np.zeros((offsets.shape[0], size))
     out[:, n : 2 * n] = force / assembly.mass_diagonal
     out[:, 2 * n :] = (offsets @ g_s.T) * (series.stiffness / series.damping)
@@ -208,12 +215,12 @@ def design_forcing(
 
 def design_signals(
     assembly: Assembly,
-    system: object,
+    system: StateSpace,
     design: TrackDesign,
     speed_m_s: float,
     sample_rate_hz: float,
     n_samples: int,
-    sensors: tuple[object, ...],
+    sensors: Sequence[SensorSpec],
     dead_band_slopes: FloatArray | None = None,
     time_step_s: float | None = None,
 ) -> FloatArray:
@@ -249,7 +256,7 @@ def design_signals(
     car = -float(np.min(assembly.axle_positions_m)) + speed_m_s * times
     terms = design_inputs(assembly, design, car, np.full(times.size, speed_m_s), dt, sensors)
     forcing = design_forcing(assembly, system, terms, dead_band_slopes)
-    a = system.a  # type: ignore[attr-defined]
+    a = system.a
     quasi_static = -np.linalg.solve(a, forcing.T)  # (size x T)
     drive = -np.gradient(quasi_static, dt, axis=1)  # −ż_qs, nonzero in transitions only
     padded = 2 * times.size
