@@ -24,17 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
-import scipy.signal
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import INPUTS_PER_AXLE, Assembly, build_assembly
 from susp_bo.rig.design import TrackDesign
-from susp_bo.rig.linear_curving import (
-    OperatingPoint,
-    design_signals,
-    operating_points,
-    point_state,
-)
+from susp_bo.rig.linear_curving import CurvedLineMethods
 from susp_bo.rig.response import RigResponse
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import Spectra, SpectrumSettings
@@ -200,7 +194,7 @@ def _hann_kernel(offsets_hz: FloatArray, segment_s: float) -> FloatArray:
     return kernel / (np.sum(kernel, axis=-1) * spacing)[..., None]
 
 
-class LinearisedRig:
+class LinearisedRig(CurvedLineMethods):
     """Frequency-domain model of a rig spec (same elements as the PyBullet world).
 
     Args:
@@ -223,83 +217,6 @@ class LinearisedRig:
     ) -> StateSpace:
         spec = self.spec.with_parameters(parameters)
         return state_space(build_assembly(spec), speed_m_s, dead_band_slopes)
-
-    def operating_points(
-        self,
-        design: TrackDesign,
-        parameters: Mapping[str, float] | None = None,
-        speed_m_s: float | None = None,
-    ) -> list[OperatingPoint]:
-        """Steady curving states along the recorded stretch of a default run on ``design``.
-
-        The car runs at constant speed with its rearmost axle at chainage 0 at t = 0;
-        the recorded stretch follows the warm-up (the rig's simulation settings).
-
-        Raises:
-            LinearModelNotApplicable: a curve puts a flange or bump stop into contact.
-            DesignError: the design does not cover the run.
-        """
-        sim = self.spec.simulation
-        speed = sim.speed_m_s if speed_m_s is None else float(speed_m_s)
-        assembly = build_assembly(self.spec.with_parameters(parameters))
-        start = -float(np.min(assembly.axle_positions_m))
-        return operating_points(
-            assembly,
-            design,
-            speed,
-            start + speed * sim.warm_up_s,
-            start + speed * (sim.warm_up_s + sim.duration_s),
-        )
-
-    def steady_curving(
-        self,
-        radius_m: float,
-        cant_m: float,
-        parameters: Mapping[str, float] | None = None,
-        speed_m_s: float | None = None,
-        direction: str = "left",
-    ) -> dict[str, object]:
-        """Quasi-static state of the vehicle in a steady curve (nonlinear dead bands).
-
-        Args:
-            radius_m: curve radius (m), >= 150.
-            cant_m: cant on the outer rail (m), 0 … 0.18.
-            parameters: named parameter values (default: the rig's).
-            speed_m_s: speed (default: the rig's).
-            direction: ``left`` or ``right``.
-
-        Returns:
-            ``q`` (n,) coordinates (deviations from the reference frames, by name),
-            ``sensors`` (C,) quasi-static readings in m/s² (specific force in the body
-            frame: design term plus gravity pick-up of the body roll),
-            ``dead_bands`` (m_dead,) deflections in m, by name.
-        """
-        from susp_bo.rig.line_file import design_from_segments
-
-        speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
-        assembly = build_assembly(self.spec.with_parameters(parameters))
-        length = 4.0 * float(np.ptp(assembly.axle_positions_m)) + 10.0
-        design = design_from_segments(
-            [
-                {
-                    "type": "curve",
-                    "length_m": length,
-                    "radius_m": radius_m,
-                    "cant_mm": cant_m * 1000.0,
-                    "direction": direction,
-                }
-            ],
-            source="steady_curving",
-        )
-        q, u, terms = point_state(
-            assembly, design, 0.5 * length, speed, self.spec.with_parameters(parameters).sensors
-        )
-        sensors = assembly.sensor_displacement @ q + terms
-        return {
-            "q": dict(zip(assembly.dof_names, q.tolist())),
-            "sensors": dict(zip(assembly.channels, sensors.tolist())),
-            "dead_bands": dict(zip(assembly.dead_bands.group.names, u.tolist())),
-        }
 
     def eigenvalues(
         self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
@@ -489,57 +406,6 @@ class LinearisedRig:
         welch[bins == 0] = 0.0
         band = _band_average(welch.T, resolution, settings.band_edges_hz())
         return Spectra(settings.frequencies_hz(), self.spec.channels, 0.5 * np.log(band))
-
-    def design_welch(
-        self,
-        design: TrackDesign,
-        parameters: Mapping[str, float] | None = None,
-        speed_m_s: float | None = None,
-        settings: SpectrumSettings | None = None,
-        time_step_s: float = 0.005,
-    ) -> FloatArray:
-        """Welch PSD (K x C) of the deterministic part the design leaves in the signals.
-
-        The vehicle's response to the design of a default run (rearmost axle at
-        chainage 0 at t = 0, the rig's warm-up and duration), minus the removed
-        reference specific force (:func:`~susp_bo.rig.linear_curving.design_signals`),
-        linearised about the run's main operating point; Welch-estimated over the
-        recorded part exactly as the signals are (same segments, window and
-        detrending). Being deterministic, it adds to the expected PSD of the random
-        part. Bins ``k / segment_s`` (K = segment_s fs / 2 + 1).
-        """
-        settings = self.spec.spectrum if settings is None else settings
-        sim = self.spec.simulation
-        speed = sim.speed_m_s if speed_m_s is None else float(speed_m_s)
-        points = self.operating_points(design, parameters, speed)
-        main = max(points, key=lambda point: point.weight)
-        system = self._system(parameters, speed, main.dead_band_slopes)
-        rate = sim.sample_rate_hz
-        total = round((sim.warm_up_s + sim.duration_s) * rate)
-        signals = design_signals(
-            system.assembly,
-            system,
-            design,
-            speed,
-            rate,
-            total,
-            self.spec.with_parameters(parameters).sensors,
-            main.dead_band_slopes,
-            time_step_s,
-        )[:, round(sim.warm_up_s * rate) :]
-        nperseg = min(max(round(settings.segment_s * rate), 2), signals.shape[1])
-        noverlap = min(round(settings.overlap * nperseg), nperseg - 1)
-        _, psd = scipy.signal.welch(
-            signals,
-            fs=rate,
-            window="hann",
-            nperseg=nperseg,
-            noverlap=noverlap,
-            detrend="constant",
-            scaling="density",
-            axis=-1,
-        )
-        return psd.T
 
     def periodic_lines(
         self, parameters: Mapping[str, float] | None, speed_m_s: float

@@ -20,18 +20,19 @@ deflection — use the PyBullet rig (:class:`~susp_bo.rig.simulator.Rig`) there.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from susp_bo.rig.assembly import Assembly
+from susp_bo.rig.assembly import Assembly, build_assembly
 from susp_bo.rig.curving import DesignInputs, design_inputs, steady_state
 from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.elements import ElementGroup
-from susp_bo.rig.spec import SensorSpec
+from susp_bo.rig.spec import RigSpec, SensorSpec
+from susp_bo.rig.spectra import SpectrumSettings, welch_psd
 
 if TYPE_CHECKING:
     from susp_bo.rig.linear import StateSpace
@@ -270,3 +271,154 @@ def design_signals(
     velocity = assembly.sensor_acceleration @ state[n : 2 * n]  # (C x n_samples + 1)
     position = assembly.sensor_displacement @ state[:n]
     return np.diff(velocity, axis=1) / interval + 0.5 * (position[:, 1:] + position[:, :-1])
+
+
+def steady_curving_state(
+    assembly: Assembly,
+    sensors: Sequence[SensorSpec],
+    radius_m: float,
+    cant_m: float,
+    speed_m_s: float,
+    direction: str = "left",
+) -> dict[str, dict[str, float]]:
+    """Quasi-static state in a steady curve (see :meth:`LinearisedRig.steady_curving`).
+
+    Returns:
+        ``q`` by coordinate name, ``sensors`` (m/s², specific force in the body frame:
+        design term plus gravity pick-up of the body roll) by channel, ``dead_bands``
+        deflections (m) by element name.
+    """
+    from susp_bo.rig.line_file import design_from_segments
+
+    length = 4.0 * float(np.ptp(assembly.axle_positions_m)) + 10.0
+    design = design_from_segments(
+        [
+            {
+                "type": "curve",
+                "length_m": length,
+                "radius_m": radius_m,
+                "cant_mm": cant_m * 1000.0,
+                "direction": direction,
+            }
+        ],
+        source="steady_curving",
+    )
+    q, u, terms = point_state(assembly, design, 0.5 * length, speed_m_s, sensors)
+    readings = assembly.sensor_displacement @ q + terms
+    return {
+        "q": dict(zip(assembly.dof_names, q.tolist())),
+        "sensors": dict(zip(assembly.channels, readings.tolist())),
+        "dead_bands": dict(zip(assembly.dead_bands.group.names, u.tolist())),
+    }
+
+
+class CurvedLineMethods:
+    """The design-related methods of :class:`~susp_bo.rig.linear.LinearisedRig`.
+
+    Kept here, with the rest of the curved-line model; they use the rig's ``spec``
+    and ``_system(parameters, speed, dead_band_slopes)``.
+    """
+
+    spec: RigSpec
+
+    def _system(
+        self,
+        parameters: Mapping[str, float] | None,
+        speed_m_s: float,
+        dead_band_slopes: FloatArray | None = None,
+    ) -> StateSpace:
+        raise NotImplementedError  # pragma: no cover - provided by LinearisedRig
+
+    def operating_points(
+        self,
+        design: TrackDesign,
+        parameters: Mapping[str, float] | None = None,
+        speed_m_s: float | None = None,
+    ) -> list[OperatingPoint]:
+        """Steady curving states along the recorded stretch of a default run on ``design``.
+
+        The car runs at constant speed with its rearmost axle at chainage 0 at t = 0;
+        the recorded stretch follows the warm-up (the rig's simulation settings).
+
+        Raises:
+            LinearModelNotApplicable: a curve puts a flange or bump stop into contact.
+            DesignError: the design does not cover the run.
+        """
+        sim = self.spec.simulation
+        speed = sim.speed_m_s if speed_m_s is None else float(speed_m_s)
+        assembly = build_assembly(self.spec.with_parameters(parameters))
+        start = -float(np.min(assembly.axle_positions_m))
+        return operating_points(
+            assembly,
+            design,
+            speed,
+            start + speed * sim.warm_up_s,
+            start + speed * (sim.warm_up_s + sim.duration_s),
+        )
+
+    def steady_curving(
+        self,
+        radius_m: float,
+        cant_m: float,
+        parameters: Mapping[str, float] | None = None,
+        speed_m_s: float | None = None,
+        direction: str = "left",
+    ) -> dict[str, object]:
+        """Quasi-static state of the vehicle in a steady curve (nonlinear dead bands).
+
+        Args:
+            radius_m: curve radius (m), >= 150.
+            cant_m: cant on the outer rail (m), 0 … 0.18.
+            parameters: named parameter values (default: the rig's).
+            speed_m_s: speed (default: the rig's).
+            direction: ``left`` or ``right``.
+
+        Returns:
+            ``q`` (n,) coordinates (deviations from the reference frames, by name),
+            ``sensors`` (C,) quasi-static readings in m/s² (specific force in the body
+            frame: design term plus gravity pick-up of the body roll),
+            ``dead_bands`` (m_dead,) deflections in m, by name.
+        """
+        speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
+        spec = self.spec.with_parameters(parameters)
+        return steady_curving_state(
+            build_assembly(spec), spec.sensors, radius_m, cant_m, speed, direction
+        )
+
+    def design_welch(
+        self,
+        design: TrackDesign,
+        parameters: Mapping[str, float] | None = None,
+        speed_m_s: float | None = None,
+        settings: SpectrumSettings | None = None,
+        time_step_s: float = 0.005,
+    ) -> FloatArray:
+        """Welch PSD (K x C) of the deterministic part the design leaves in the signals.
+
+        The vehicle's response to the design of a default run (rearmost axle at
+        chainage 0 at t = 0, the rig's warm-up and duration), minus the removed
+        reference specific force (:func:`~susp_bo.rig.linear_curving.design_signals`),
+        linearised about the run's main operating point; Welch-estimated over the
+        recorded part exactly as the signals are (same segments, window and
+        detrending). Being deterministic, it adds to the expected PSD of the random
+        part. Bins ``k / segment_s`` (K = segment_s fs / 2 + 1).
+        """
+        settings = self.spec.spectrum if settings is None else settings
+        sim = self.spec.simulation
+        speed = sim.speed_m_s if speed_m_s is None else float(speed_m_s)
+        points = self.operating_points(design, parameters, speed)
+        main = max(points, key=lambda point: point.weight)
+        system = self._system(parameters, speed, main.dead_band_slopes)
+        rate = sim.sample_rate_hz
+        signals = design_signals(
+            system.assembly,
+            system,
+            design,
+            speed,
+            rate,
+            round((sim.warm_up_s + sim.duration_s) * rate),
+            self.spec.with_parameters(parameters).sensors,
+            main.dead_band_slopes,
+            time_step_s,
+        )[:, round(sim.warm_up_s * rate) :]
+        return welch_psd(signals, rate, settings).T
