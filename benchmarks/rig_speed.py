@@ -4,6 +4,7 @@ Run on one core (BLAS threads pinned to 1 before numpy loads)::
 
     python benchmarks/rig_speed.py            # 60 s of simulated track
     python benchmarks/rig_speed.py --quick    # 20 s, for a smoke check
+    python benchmarks/rig_speed.py --line FILE  # the curved-line figures on a line file
 
 Prints, all measured in this run:
 
@@ -14,7 +15,10 @@ Prints, all measured in this run:
 * where the time per step goes (state read, force model, torque write, step);
 * the time-step check: spectra at dt and dt/2 on the same track (dB deviation);
 * PyBullet (linear elements) vs the linearised model on the same track (dB);
-* the linearised model: time per expected spectrum and per time response.
+* the linearised model: time per expected spectrum and per time response;
+* a curved line (built-in S-curve R = 7000 m, 150 mm cant, with transitions, or
+  ``--line FILE``): wall time of the same run on it, ratio to bare stepping and
+  to tangent track, and the linearised model on it (operating points along the line).
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import pybullet  # noqa: E402
 
 from susp_bo.rig.assembly import build_assembly  # noqa: E402
 from susp_bo.rig.dynamics import ForceModel  # noqa: E402
+from susp_bo.rig.line_file import design_from_segments, load_line  # noqa: E402
 from susp_bo.rig.linear import LinearisedRig  # noqa: E402
 from susp_bo.rig.simulator import Rig, excitation_for_run, synthetic_track  # noqa: E402
 from susp_bo.rig.spec import load_rig_spec  # noqa: E402
@@ -104,6 +109,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="20 s of track instead of 60 s")
     parser.add_argument("--rig", default="hst_trailer")
+    parser.add_argument("--line", help="line design file for the curved-line figures")
     args = parser.parse_args()
     duration = 20.0 if args.quick else 60.0
     spec = load_rig_spec(args.rig).with_simulation(duration_s=duration)
@@ -168,6 +174,68 @@ def main() -> None:
         f"linearised model: {1e3 * per_spectrum:.1f} ms per expected spectrum (all channels), "
         f"{response_time:.2f} s per {simulated_s:g} s time response; "
         f"{full / per_spectrum:.0f}x faster than one PyBullet run"
+    )
+    curved_line(spec, track, args.line)
+
+
+S_CURVE = [
+    {"type": "tangent", "length_m": 400.0},
+    {"type": "transition", "length_m": 250.0},
+    {
+        "type": "curve",
+        "length_m": 1200.0,
+        "radius_m": 7000.0,
+        "cant_mm": 150.0,
+        "direction": "left",
+    },
+    {"type": "transition", "length_m": 250.0},
+    {
+        "type": "curve",
+        "length_m": 6000.0,
+        "radius_m": 7000.0,
+        "cant_mm": 150.0,
+        "direction": "right",
+    },
+]
+
+
+def curved_line(spec, track, line: str | None) -> None:
+    """The same run on a curved line: cost ratios and the linearised model on it."""
+    design = load_line(line) if line else design_from_segments(S_CURVE, source="built-in S-curve")
+    walls: dict[str, list[float]] = {"curved": [], "tangent": []}
+    with Rig(spec) as rig:  # alternate, best of 3 each: the machine is shared
+        for _ in range(3):
+            start = time.perf_counter()
+            curved = rig.simulate(track, design=design)
+            walls["curved"].append(time.perf_counter() - start)
+            start = time.perf_counter()
+            tangent = rig.simulate(track)
+            walls["tangent"].append(time.perf_counter() - start)
+    wall, flat = min(walls["curved"]), min(walls["tangent"])
+    steps = round(
+        (spec.simulation.warm_up_s + spec.simulation.duration_s) / spec.simulation.time_step_s
+    )
+    bare = min(bare_stepping(spec, steps) for _ in range(3))
+    difference = DB * np.abs(curved.spectra().log_amplitude - tangent.spectra().log_amplitude)
+    print(
+        f"curved line ({design.source}), best of 3: {wall:7.3f} s wall; ratio to bare stepping "
+        f"{wall / bare:.2f} (tangent {flat / bare:.2f}), to tangent track {wall / flat:.2f}; "
+        f"spectra vs tangent (quasi-static part removed): median {np.median(difference):.3f} "
+        f"dB, max {difference.max():.3f} dB"
+    )
+    linear = LinearisedRig(spec)
+    start = time.perf_counter()
+    points = linear.operating_points(design)
+    spectra = linear.spectra(design=design)
+    per_line = time.perf_counter() - start
+    start = time.perf_counter()
+    flat = linear.spectra()
+    per_tangent = time.perf_counter() - start
+    shift = DB * np.abs(spectra.log_amplitude - flat.log_amplitude)
+    print(
+        f"linearised model on the line: {len(points)} operating points, "
+        f"{1e3 * per_line:.0f} ms per expected spectrum ({per_line / per_tangent:.1f}x tangent); "
+        f"shift vs tangent max {shift.max():.3f} dB"
     )
 
 

@@ -92,6 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--duration", type=number(0, strict=True, unit="s"), help="simulated time in s"
     )
     simulate.add_argument("--seed", type=integer(0), default=0)
+    simulate.add_argument("--line", help="line design file (TOML segments: curves, cant, grades)")
     simulate.set_defaults(handler=_simulate)
 
     synth = sub.add_parser(
@@ -107,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     synth.add_argument(
         "--noise", type=number(0, unit="m/s^2"), default=0.0, help="sensor noise, m/s^2 rms"
     )
+    synth.add_argument("--line", help="line design file (TOML segments: curves, cant, grades)")
     synth.set_defaults(handler=_synth)
 
     calibrate = sub.add_parser("calibrate", help="the four steps: design, kriging, EGO, MCMC")

@@ -23,6 +23,7 @@ import numpy as np
 
 from susp_bo.calibration.likelihood import OutputError, log_likelihood
 from susp_bo.execution import TaskOutcome, run_tasks
+from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.simulator import Rig
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import with_noise_floor
@@ -38,11 +39,13 @@ class TrackRun:
         track_id: stable id (recorded in the store with every evaluation).
         geometry: track irregularities sampled in space.
         speed: speed record of the run.
+        design: the line's design (curves, cant, gradient), None on tangent track.
     """
 
     track_id: str
     geometry: TrackGeometry
     speed: SpeedProfile
+    design: TrackDesign | None = None
 
 
 class _RigCache(threading.local):
@@ -66,9 +69,16 @@ _WORKER_RIGS = _RigCache()
 
 
 def simulate_spectra(
-    spec: RigSpec, parameters: Mapping[str, float], geometry: TrackGeometry, speed: SpeedProfile
+    spec: RigSpec,
+    parameters: Mapping[str, float],
+    geometry: TrackGeometry,
+    speed: SpeedProfile,
+    design: TrackDesign | None = None,
 ) -> np.ndarray:
     """One simulator evaluation h(x, w): the rig's log-amplitude spectra (C x F).
+
+    On a designed line the rig follows the design and the design's quasi-static
+    specific force is removed before the spectra, as from the measured runs.
 
     A top-level function so that worker processes (and Dask workers) import it
     by name; each worker keeps its own rig (PyBullet client) between calls.
@@ -76,7 +86,7 @@ def simulate_spectra(
     Raises:
         SimulationFailed: the simulation diverged (recorded as a failed evaluation).
     """
-    spectra = _WORKER_RIGS.rig(spec).spectra(geometry, speed, dict(parameters))
+    spectra = _WORKER_RIGS.rig(spec).spectra(geometry, speed, dict(parameters), design=design)
     return np.asarray(spectra.log_amplitude, dtype=np.float64)
 
 
@@ -154,6 +164,7 @@ class LikelihoodEvaluator:
                     dict(zip(self.names, W[row].tolist())),
                     self.tracks[column].geometry,
                     self.tracks[column].speed,
+                    self.tracks[column].design,
                 )
                 for row, column in missing
             ]

@@ -47,6 +47,8 @@ from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.output_folder import check_output_folder
+from susp_bo.rig.assembly import build_assembly
+from susp_bo.rig.curving import reference_specific_force
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.store import EvaluationStore, StoreMismatchError, study_fingerprint
@@ -220,6 +222,26 @@ def _store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
     )
 
 
+def design_removal(spec: RigSpec, run: MeasuredRun) -> np.ndarray | None:
+    """The design's quasi-static specific force at the rig's sensors over ``run`` (C x n_t).
+
+    None for a run without a design. Removed from the measured accelerations
+    before their spectra, exactly as the rig removes it from simulated ones
+    (:func:`susp_bo.rig.curving.reference_specific_force`); depends on the design,
+    the speed and the rig's geometry only.
+    """
+    if run.design is None:
+        return None
+    sensors = {sensor.name: sensor for sensor in spec.sensors}
+    return reference_specific_force(
+        build_assembly(spec),
+        tuple(sensors[channel] for channel in run.channels),
+        run.design,
+        run.speed,
+        run.time_s,
+    )
+
+
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     """Check every input of a study and load its data (no simulation).
 
@@ -253,9 +275,14 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     except ValueError as error:
         raise StudyError(f"data: {error}{import_hint(config.data)}") from error
     check_runs_rig(runs, spec.name, config.data)
-    measured = np.stack([run.spectra(spec.spectrum).log_amplitude for run in runs])
+    try:
+        measured = np.stack(
+            [run.spectra(spec.spectrum, design_removal(spec, run)).log_amplitude for run in runs]
+        )
+    except ValueError as error:
+        raise StudyError(f"data: {error}") from error
     tracks = tuple(
-        TrackRun(f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed)
+        TrackRun(f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed, run.design)
         for index, run in enumerate(runs)
     )
     all_names = spec.calibration_names

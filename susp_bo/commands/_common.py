@@ -54,3 +54,24 @@ def output_folder(out: str | Path, label: str = "--out") -> Path:
     folder = checked_output_folder(out, label)
     folder.mkdir(parents=True, exist_ok=True)
     return folder
+
+
+def read_line_file(path: str | Path | None, spec: object) -> object:
+    """The track design of ``--line FILE`` checked against a default run of ``spec``, or None.
+
+    Raises:
+        UsageError: missing or bad file, a design outside the limits, or one that does not
+            cover the run (the message names the file, the value and what is allowed).
+    """
+    if path is None:
+        return None
+    from susp_bo.rig.design import DesignError
+    from susp_bo.rig.line_file import load_line
+    from susp_bo.rig.simulator import synthetic_track_length_m
+
+    try:
+        design = load_line(path)
+        design.check_covers(0.0, synthetic_track_length_m(spec), "the run (--speed, --duration)")
+    except DesignError as error:
+        raise UsageError(f"--line: {error}") from error
+    return design

@@ -12,6 +12,7 @@ from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
     output_folder,
+    read_line_file,
     read_parameter_file,
 )
 from susp_bo.json_files import write_json
@@ -57,6 +58,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     from susp_bo.response_plots import plot_response
 
     spec, _ = prepared_spec(args)
+    design = read_line_file(getattr(args, "line", None), spec)
     out = output_folder(args.out)
     settings = spec.simulation
     speed = SpeedProfile.constant(settings.speed_m_s, settings.warm_up_s + settings.duration_s)
@@ -67,7 +69,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     with Rig(spec) as rig:
-        response = rig.simulate(geometry, speed)
+        response = rig.simulate(geometry, speed, design=design)
     spectra = response.spectra(spec.spectrum)
     np.savez_compressed(
         out / "signals.npz",
@@ -82,6 +84,7 @@ def run_simulate(args: argparse.Namespace) -> int:
             "parameters": spec.parameter_values(),
             "speed_m_s": settings.speed_m_s,
             "seed": args.seed,
+            "line": str(args.line) if getattr(args, "line", None) else None,
             "frequencies_hz": spectra.frequencies_hz.tolist(),
             "channels": list(spectra.channels),
             "log_amplitude": spectra.log_amplitude.tolist(),

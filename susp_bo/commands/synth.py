@@ -9,6 +9,7 @@ from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
     output_folder,
+    read_line_file,
     read_parameter_file,
 )
 from susp_bo.data.measured import save_run
@@ -68,10 +69,18 @@ def run_synth(args: argparse.Namespace) -> int:
             spec.with_simulation(speed_m_s=args.speed)
         except ValueError as error:
             raise UsageError(f"--speed: {args.speed} is not allowed ({error})") from None
+    line_spec = spec.with_simulation(speed_m_s=args.speed) if args.speed is not None else spec
+    design = read_line_file(getattr(args, "line", None), line_spec)
     out = output_folder(args.out)
     print(f"susp-bo synth: {args.nu} runs of {spec.name}, seed {args.seed}", file=sys.stderr)
     runs = synthesize_runs(
-        spec, truth, nu=args.nu, seed=args.seed, noise_m_s2=args.noise, speed_m_s=args.speed
+        spec,
+        truth,
+        nu=args.nu,
+        seed=args.seed,
+        noise_m_s2=args.noise,
+        speed_m_s=args.speed,
+        design=design,
     )
     for index, run in enumerate(runs):
         save_run(run, out / f"run_{index:03d}.h5")
@@ -83,6 +92,7 @@ def run_synth(args: argparse.Namespace) -> int:
             "seed": args.seed,
             "nu": args.nu,
             "noise_m_s2": args.noise,
+            "line": str(args.line) if getattr(args, "line", None) else None,
             "effects": [
                 {
                     "name": name,

@@ -18,10 +18,12 @@ from susp_bo.data.measured import (
     FORMAT_NAME,
     FORMAT_VERSION,
     GEOMETRY_UNITS,
+    READABLE_VERSIONS,
     MeasuredDataError,
     MeasuredRun,
     _nan_problems,
 )
+from susp_bo.rig.design import DESIGN_COMPONENTS, DESIGN_UNITS, TrackDesign
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
 _NUMERIC_KINDS = {"f", "i", "u"}
@@ -71,7 +73,7 @@ def _write_array(group: h5py.Group, name: str, values: np.ndarray, unit: str | N
 
 
 def write_run_file(run: MeasuredRun, path: Path) -> None:
-    """Write ``run`` to ``path`` (overwritten) in format version 1."""
+    """Write ``run`` to ``path`` (overwritten) in format version 2."""
     strings = h5py.string_dtype(encoding="utf-8")
     with h5py.File(path, "w", libver=("v110", "latest"), userblock_size=USERBLOCK_SIZE) as file:
         file.attrs["format"] = FORMAT_NAME
@@ -82,6 +84,10 @@ def write_run_file(run: MeasuredRun, path: Path) -> None:
         geometry.attrs["spacing_m"] = np.float64(run.geometry.spacing_m)
         for name in GEOMETRY_COMPONENTS:
             _write_array(geometry, name, getattr(run.geometry, name), GEOMETRY_UNITS[name])
+        if run.design is not None:
+            design = file.create_group("design")
+            for name in ("chainage_m", *DESIGN_COMPONENTS):
+                _write_array(design, name, getattr(run.design, name), DESIGN_UNITS[name])
         speed = file.create_group("speed")
         _write_array(speed, "time_s", run.speed.time_s, "s")
         _write_array(speed, "speed_m_s", run.speed.speed_m_s, "m/s")
@@ -186,8 +192,15 @@ def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
             f"not a measured-run file: attribute format = {name!r}, expected {FORMAT_NAME!r}"
         )
     version = reader.attribute(file, "format_version")
-    if isinstance(version, bool) or not isinstance(version, int) or version != FORMAT_VERSION:
-        raise reader.fail(f"format_version = {version!r}; this reader knows {FORMAT_VERSION}")
+    if (
+        isinstance(version, bool)
+        or not isinstance(version, int)
+        or version not in READABLE_VERSIONS
+    ):
+        raise reader.fail(
+            f"format_version = {version!r}; this reader knows "
+            f"{', '.join(map(str, READABLE_VERSIONS))}"
+        )
     try:
         metadata = json.loads(reader.text(file, "metadata_json"))
     except json.JSONDecodeError as error:
@@ -201,6 +214,22 @@ def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
         component: reader.numbers(geometry_group, component, 1, GEOMETRY_UNITS[component])
         for component in GEOMETRY_COMPONENTS
     }
+    design = None
+    if "design" in file:
+        if version < 2:
+            raise reader.fail(
+                f"/design needs format_version >= 2; the file says {version} (a version-1 "
+                "file has no design group)"
+            )
+        design_group = reader.group("design")
+        arrays = {
+            name: reader.numbers(design_group, name, 1, DESIGN_UNITS[name])
+            for name in ("chainage_m", *DESIGN_COMPONENTS)
+        }
+        try:
+            design = TrackDesign(**arrays, source=f"{where}:/design")
+        except ValueError as error:
+            raise MeasuredDataError(str(error)) from None
     speed_group = reader.group("speed")
     time = reader.numbers(speed_group, "time_s", 1, "s")
     speed_values = reader.numbers(speed_group, "speed_m_s", 1, "m/s")
@@ -224,6 +253,7 @@ def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
             units=units,
             metadata=metadata,
             time_offset_s=offset,
+            design=design,
         )
     except ValueError as error:  # includes MeasuredDataError
         raise reader.fail(str(error)) from None

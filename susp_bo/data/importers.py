@@ -9,9 +9,12 @@ empty cells read as NaN):
   ``mm/s^2``, ``cm/s^2`` are recognised, see :meth:`MeasuredRun.to_si`).
   An optional column ``speed_m_s`` holds the speed record at the same times.
 * geometry file: columns ``s_m, vertical_m, alignment_m, cross_level_rad,
-  gauge_m`` (any order, no others), ``s_m`` uniformly spaced. The first row is
-  the track origin (s = 0); its original chainage is kept in the metadata as
-  ``geometry_start_m``.
+  gauge_m`` (any order), ``s_m`` uniformly spaced, and optionally the line's
+  design on the same rows: ``curvature_1_m`` (1/m, + left-hand curve),
+  ``cant_m`` (m, signed cross-level, + left rail higher) and ``gradient``
+  (rise/run) — all three or none (see :mod:`susp_bo.rig.design`). The first
+  row is the track origin (s = 0); its original chainage is kept in the
+  metadata as ``geometry_start_m``.
 * speed: a constant in m/s, or a CSV with columns ``time_s, speed_m_s``, or
   (``speed=None``) the ``speed_m_s`` column of the accelerations file.
 
@@ -25,7 +28,9 @@ unambiguous), ``channels`` (cell array of char), ``units`` (optional cell
 array, default m/s^2), ``sample_rate_hz``, ``time_offset_s`` (optional),
 ``spacing_m``, ``vertical_m``, ``alignment_m``, ``cross_level_rad``,
 ``gauge_m``, ``speed_m_s`` (scalar = constant, or vector with ``speed_time_s``),
-``metadata_json`` (optional char).
+``metadata_json`` (optional char), and optionally the design: ``design_chainage_m``
+(on the geometry's s axis), ``design_curvature_1_m``, ``design_cant_m``,
+``design_gradient`` (all four or none).
 
 Every problem raises :class:`~susp_bo.data.measured.MeasuredDataError` naming
 the file, the column or variable and the expectation.
@@ -48,10 +53,19 @@ from susp_bo.data.measured import (
     MeasuredRun,
     nan_runs,
 )
+from susp_bo.rig.design import DESIGN_COMPONENTS, TrackDesign
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
 PathLike = str | os.PathLike[str]
 _GEOMETRY_COLUMNS = ("s_m", *GEOMETRY_COMPONENTS)
+_DESIGN_VARIABLES = tuple(f"design_{name}" for name in ("chainage_m", *DESIGN_COMPONENTS))
+
+
+def _design(path: Path, **fields: Any) -> TrackDesign:
+    try:
+        return TrackDesign(**fields, source=str(path))
+    except ValueError as error:
+        raise MeasuredDataError(str(error)) from None
 
 
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
@@ -198,11 +212,13 @@ def read_csv_run(
         )
 
     geo_header, geo_table = _read_table(geo_path)
-    if sorted(geo_header) != sorted(_GEOMETRY_COLUMNS):
+    design_columns = set(geo_header) & set(DESIGN_COMPONENTS)
+    expected = _GEOMETRY_COLUMNS + (DESIGN_COMPONENTS if design_columns else ())
+    if sorted(geo_header) != sorted(expected):
         raise MeasuredDataError(
-            f"{geo_path}: columns must be {list(_GEOMETRY_COLUMNS)}; missing "
-            f"{sorted(set(_GEOMETRY_COLUMNS) - set(geo_header))}, unknown "
-            f"{sorted(set(geo_header) - set(_GEOMETRY_COLUMNS))}"
+            f"{geo_path}: columns must be {list(_GEOMETRY_COLUMNS)} (+ optionally all of "
+            f"{list(DESIGN_COMPONENTS)}); missing {sorted(set(expected) - set(geo_header))}, "
+            f"unknown {sorted(set(geo_header) - set(expected))}"
         )
     s = geo_table[:, geo_header.index("s_m")]
     spacing = _uniform_step(geo_path, "s_m", s)
@@ -211,6 +227,13 @@ def read_csv_run(
         spacing_m=spacing,
         **{name: geo_table[:, geo_header.index(name)] for name in GEOMETRY_COMPONENTS},
     )
+    design = None
+    if design_columns:
+        design = _design(
+            geo_path,
+            chainage_m=s - s[0],
+            **{name: geo_table[:, geo_header.index(name)] for name in DESIGN_COMPONENTS},
+        )
     info = {"source": f"csv:{acc_path.name}", **(metadata or {}), "geometry_start_m": float(s[0])}
     run = _build(
         acc_path,
@@ -222,6 +245,7 @@ def read_csv_run(
         units=tuple(units),
         metadata=info,
         time_offset_s=offset,
+        design=design,
     )
     return _check_nan(acc_path, run, allow_nan)
 
@@ -229,16 +253,22 @@ def read_csv_run(
 def write_csv_run(
     run: MeasuredRun, accelerations_csv: PathLike, geometry_csv: PathLike, speed_csv: PathLike
 ) -> None:
-    """Export ``run`` to the CSV layout (times on the speed clock; full float precision)."""
+    """Export ``run`` to the CSV layout (times on the speed clock; full float precision).
+
+    A design is written as its values at the geometry's samples (its knots in between
+    are not kept: a design record sampled like the geometry).
+    """
     header = ["time_s", *(f"{c} [{u}]" for c, u in zip(run.channels, run.units))]
     columns = [run.time_s, *run.accelerations_m_s2]
     _write_table(Path(accelerations_csv), header, np.column_stack(columns))
     geometry = run.geometry
-    _write_table(
-        Path(geometry_csv),
-        list(_GEOMETRY_COLUMNS),
-        np.column_stack([geometry.position_m, *geometry.stacked()]),
-    )
+    names = list(_GEOMETRY_COLUMNS)
+    table = [geometry.position_m, *geometry.stacked()]
+    if run.design is not None:
+        s = geometry.position_m
+        names += list(DESIGN_COMPONENTS)
+        table += [run.design.curvature(s), run.design.cant(s), run.design.grade(s)[0]]
+    _write_table(Path(geometry_csv), names, np.column_stack(table))
     _write_table(
         Path(speed_csv),
         ["time_s", "speed_m_s"],
@@ -351,6 +381,21 @@ def read_mat_run(
             raise MeasuredDataError(f"{mat_path}: 'metadata_json' is not JSON ({error})") from None
         if not isinstance(stored, dict):
             raise MeasuredDataError(f"{mat_path}: 'metadata_json' must hold a JSON object")
+    present = [name for name in _DESIGN_VARIABLES if name in variables]
+    design = None
+    if present and len(present) != len(_DESIGN_VARIABLES):
+        raise MeasuredDataError(
+            f"{mat_path}: design variables must come together: found {present}, missing "
+            f"{sorted(set(_DESIGN_VARIABLES) - set(present))}"
+        )
+    if present:
+        design = _design(
+            mat_path,
+            **{
+                name.removeprefix("design_"): _mat_vector(mat_path, variables, name)
+                for name in _DESIGN_VARIABLES
+            },
+        )
     run = _build(
         mat_path,
         geometry=geometry,
@@ -361,6 +406,7 @@ def read_mat_run(
         units=units,
         metadata={"source": f"mat:{mat_path.name}", **stored, **(metadata or {})},
         time_offset_s=_mat_number(mat_path, variables, "time_offset_s", 0.0),
+        design=design,
     )
     return _check_nan(mat_path, run, allow_nan)
 
@@ -380,4 +426,7 @@ def write_mat_run(run: MeasuredRun, path: PathLike) -> None:
     }
     for name in GEOMETRY_COMPONENTS:
         variables[name] = getattr(run.geometry, name)
+    if run.design is not None:
+        for name in _DESIGN_VARIABLES:
+            variables[name] = getattr(run.design, name.removeprefix("design_"))
     scipy.io.savemat(Path(path), variables, do_compression=False, oned_as="column")

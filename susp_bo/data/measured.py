@@ -4,14 +4,14 @@ A measured run is what the paper calls one realization ``y_exp,i`` together
 with the excitation ``x_exp,i`` recorded with it: the track geometry sampled in
 space, the speed record, and the accelerations of every sensor channel.
 
-HDF5 format, version 1 (one run per file, extension ``.h5`` or ``.hdf5``)
+HDF5 format, version 2 (one run per file, extension ``.h5`` or ``.hdf5``)
 ------------------------------------------------------------------------
 
 All numbers are float64, SI units. Every numeric dataset carries a ``units``
 attribute (checked on load)::
 
     /                                   attrs: format = "susp_bo.measured_run"
-    │                                          format_version = 1
+    │                                          format_version = 2 (1 is still read)
     │                                          metadata_json = JSON object (str)
     │                                          content_sha256 = hex digest (optional)
     ├── geometry/                       attrs: spacing_m (> 0, m)
@@ -20,6 +20,12 @@ attribute (checked on load)::
     │   ├── cross_level_rad  (N,)  "rad"  roll of the rail plane, + left rail higher
     │   └── gauge_m          (N,)  "m"    gauge deviation from nominal, + wider
     │                                     sampled at s = 0, ds, 2 ds, …  (N >= 2)
+    ├── design/              (optional, version 2; absent on tangent track or unknown)
+    │   ├── chainage_m       (K,)  "m"    knots on the geometry's s axis, non-decreasing
+    │   ├── curvature_1_m    (K,)  "1/m"  + left-hand curve, |κ| <= 1/150 m
+    │   ├── cant_m           (K,)  "m"    signed cross-level, + left rail higher, <= 0.18 m
+    │   └── gradient         (K,)  "1"    rise/run, + uphill, <= 0.040
+    │                                     linear between knots (equal chainages: a step)
     ├── speed/
     │   ├── time_s           (n,)  "s"    strictly increasing, time_s[0] = 0
     │   └── speed_m_s        (n,)  "m/s"  > 0, piecewise linear in between
@@ -34,6 +40,13 @@ on the clock of the speed record; the car's rearmost axle is at ``s = 0`` at
 ``t = 0`` (the convention of :func:`susp_bo.rig.track.axle_excitation`).
 ``metadata_json`` holds free-form information (rig name, truth parameters and
 effects of synthetic runs, seed, noise, line and date of real ones).
+``design/`` is the line's design (:class:`susp_bo.rig.design.TrackDesign`):
+tangents, transitions and curves with their cant, and the gradient; it must
+cover the run (checked by :func:`validate_run`). On a designed line the rig
+follows the curves, and the design's quasi-static specific force is removed
+from the accelerations before the spectra (see :mod:`susp_bo.rig.curving`).
+Version 1 files (no ``design/`` group) load unchanged; a ``design/`` group in a
+file labelled version 1 is refused.
 ``content_sha256`` is the SHA-256 of the run's canonical content (written by
 :func:`save_run`; verified on load when present, so files written by other tools
 may omit it).
@@ -68,13 +81,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from susp_bo.rig.design import DESIGN_COMPONENTS, TrackDesign
 from susp_bo.rig.spectra import Spectra, SpectrumSettings, log_amplitude_spectra
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
 FloatArray = NDArray[np.float64]
 
 FORMAT_NAME = "susp_bo.measured_run"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 SI_ACCELERATION = "m/s^2"
 GEOMETRY_UNITS = {
     "vertical_m": "m",
@@ -135,6 +150,8 @@ class MeasuredRun:
         units: unit of each channel (C,), canonical spelling applied (``"m/s^2"``).
         metadata: JSON-compatible information; stored as its JSON round trip.
         time_offset_s: time of the first acceleration sample on the speed clock (s), >= 0.
+        design: the line's design on the geometry's chainage (curves, cant, gradient);
+            None for tangent track or when unknown.
     """
 
     geometry: TrackGeometry
@@ -145,8 +162,14 @@ class MeasuredRun:
     units: tuple[str, ...] = ()
     metadata: dict[str, Any] = field(default_factory=dict)
     time_offset_s: float = 0.0
+    design: TrackDesign | None = None
 
     def __post_init__(self) -> None:
+        if self.design is not None and not isinstance(self.design, TrackDesign):
+            raise MeasuredDataError(
+                f"MeasuredRun.design: expected a TrackDesign or None, got "
+                f"{type(self.design).__name__}"
+            )
         if not isinstance(self.geometry, TrackGeometry):
             raise MeasuredDataError(
                 "MeasuredRun.geometry: expected a TrackGeometry, got "
@@ -253,8 +276,17 @@ class MeasuredRun:
             units=(SI_ACCELERATION,) * len(self.channels),
         )
 
-    def spectra(self, settings: SpectrumSettings | None = None) -> Spectra:
+    def spectra(
+        self, settings: SpectrumSettings | None = None, quasi_static: FloatArray | None = None
+    ) -> Spectra:
         """Log-amplitude spectra of all channels (C x F), see :mod:`susp_bo.rig.spectra`.
+
+        Args:
+            settings: spectrum settings (default :class:`SpectrumSettings()`).
+            quasi_static: on a designed line, the design's quasi-static specific force
+                at every channel (C x n_t) m/s², removed before the spectra
+                (:func:`susp_bo.rig.curving.reference_specific_force`, which needs the
+                rig's geometry); None removes nothing.
 
         Raises:
             MeasuredDataError: a channel not in m/s², NaN samples, or a record
@@ -264,17 +296,23 @@ class MeasuredRun:
         problems = _unit_problems(self, self.channels) + _nan_problems(self, self.channels)
         if problems:
             raise MeasuredDataError("; ".join(problems))
+        signals = self.accelerations_m_s2
+        if quasi_static is not None:
+            removed = np.asarray(quasi_static, dtype=np.float64)
+            if removed.shape != signals.shape:
+                raise MeasuredDataError(
+                    f"quasi_static: shape {removed.shape}; expected {signals.shape}"
+                )
+            signals = signals - removed
         try:
-            return log_amplitude_spectra(
-                self.accelerations_m_s2, self.sample_rate_hz, self.channels, settings
-            )
+            return log_amplitude_spectra(signals, self.sample_rate_hz, self.channels, settings)
         except ValueError as error:
             raise MeasuredDataError(str(error)) from None
 
     def content_digest(self) -> str:
         """SHA-256 (hex) of the canonical content: arrays, names, units, rates, metadata."""
         digest = hashlib.sha256()
-        digest.update(f"{FORMAT_NAME}/{FORMAT_VERSION}".encode())
+        digest.update(f"{FORMAT_NAME}/1".encode())  # version-1 runs keep their digest
         digest.update(np.float64(self.geometry.spacing_m).tobytes())
         for name in GEOMETRY_COMPONENTS:
             digest.update(np.ascontiguousarray(getattr(self.geometry, name)).tobytes())
@@ -292,6 +330,14 @@ class MeasuredRun:
             sort_keys=True,
         )
         digest.update(text.encode())
+        if self.design is not None:
+            digest.update(b"design")
+            for array in (
+                self.design.chainage_m,
+                *(getattr(self.design, n) for n in DESIGN_COMPONENTS),
+            ):
+                digest.update(str(array.shape).encode())
+                digest.update(np.ascontiguousarray(array).tobytes())
         return digest.hexdigest()
 
 
@@ -351,7 +397,8 @@ def validate_run(
     Checks: the required channels are present; their units are m/s²; they hold
     no NaN runs; the sampling rate exceeds twice ``settings.f_max_hz`` and the
     record holds one Welch segment; the speed record covers the acceleration
-    record; the track covers the distance travelled plus the axle span.
+    record; the track (and the design, when the run has one) covers the distance
+    travelled plus the axle span.
 
     Args:
         run: the run.
@@ -388,6 +435,13 @@ def validate_run(
             problems.append(
                 f"track shorter than the run: the geometry covers {run.geometry.length_m:g} m "
                 f"but the run travels {needed - span:g} m (+ axle span {span:g} m) = {needed:g} m"
+            )
+        if run.design is not None and (
+            run.design.start_m > 1e-9 or run.design.end_m < needed * (1 - 1e-9)
+        ):
+            problems.append(
+                f"design record does not cover the run: it covers {run.design.start_m:g} … "
+                f"{run.design.end_m:g} m but the run needs 0 … {needed:g} m"
             )
     if problems:
         raise MeasuredDataError(f"{source}: " + "; ".join(problems))

@@ -17,7 +17,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from susp_bo.data.measured import MeasuredRun
-from susp_bo.rig.simulator import Rig, synthetic_track
+from susp_bo.rig.design import TrackDesign
+from susp_bo.rig.simulator import Rig, synthetic_track, synthetic_track_length_m
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.track import SpeedProfile
 
@@ -36,6 +37,7 @@ def synthesize_runs(
     noise_m_s2: float = 0.0,
     speed_m_s: float | None = None,
     duration_s: float | None = None,
+    design: TrackDesign | None = None,
 ) -> list[MeasuredRun]:
     """Simulate ``nu`` measured runs of ``spec`` at the true parameters.
 
@@ -49,13 +51,16 @@ def synthesize_runs(
             channel (m/s²), >= 0.
         speed_m_s: constant speed (m/s); None takes the rig's default.
         duration_s: recorded time after warm-up (s); None takes the rig's default.
+        design: the line (curves, cant, gradient) every run follows, with its own
+            irregularities; stored in the runs. None is tangent track.
 
     Returns:
         ``nu`` runs, with the truth, seed, noise and rig name in their metadata.
 
     Raises:
-        ValueError: bad ``nu``, ``noise_m_s2``, speed or duration, or a truth the
-            rig refuses — all before any simulation runs.
+        ValueError: bad ``nu``, ``noise_m_s2``, speed or duration, a truth the
+            rig refuses, or a design that does not cover the runs — all before any
+            simulation runs.
     """
     if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
         raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
@@ -73,11 +78,13 @@ def synthesize_runs(
     total_s = settings.warm_up_s + settings.duration_s
     speed = SpeedProfile.constant(settings.speed_m_s, total_s)
     true_values = {name: true_spec.parameter_values()[name] for name in spec.calibration_names}
+    if design is not None:
+        design.check_covers(0.0, synthetic_track_length_m(true_spec), "the synthetic track")
     runs: list[MeasuredRun] = []
     with Rig(true_spec) as rig:
         for index in range(nu):
             geometry = synthetic_track(true_spec, seed=track_seed(seed, index))
-            response = rig.simulate(geometry, speed)
+            response = rig.simulate(geometry, speed, design=design)
             accelerations = np.array(response.accelerations_m_s2, dtype=np.float64)
             if noise_m_s2 > 0.0:
                 noise_rng = np.random.default_rng([seed, index, 2])
@@ -93,6 +100,7 @@ def synthesize_runs(
                     sample_rate_hz=float(response.sample_rate_hz),
                     units=tuple("m/s^2" for _ in response.channels),
                     time_offset_s=float(response.time_s[0]),
+                    design=design,
                     metadata={
                         "source": "synthetic",
                         "rig": spec.name,

@@ -25,6 +25,7 @@ import numpy as np
 from susp_bo.calibration.evaluation import TrackRun, simulate_spectra
 from susp_bo.calibration.likelihood import OutputError
 from susp_bo.rig.linear import LinearisedRig
+from susp_bo.rig.linear_curving import LinearModelNotApplicable
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import with_noise_floor
 
@@ -58,7 +59,17 @@ class LinearSimulator:
     def spectra(
         self, spec: RigSpec, parameters: Mapping[str, float], track: TrackRun
     ) -> FloatArray:
-        """Spectra (C x F) of ``spec`` at ``parameters`` on ``track`` (constant mean speed)."""
+        """Spectra (C x F) of ``spec`` at ``parameters`` on ``track`` (constant mean speed).
+
+        Raises:
+            LinearModelNotApplicable: the track has a curved design (the linearised
+                time response is for tangent track; use the PyBullet simulator).
+        """
+        if track.design is not None and not track.design.is_tangent():
+            raise LinearModelNotApplicable(
+                f"track {track.track_id}: the linearised time response does not follow a "
+                "track design (curves, cant, gradient); use the PyBullet simulator"
+            )
         sim = spec.simulation
         speed = float(np.mean(track.speed.speed_at(np.linspace(0, track.speed.duration_s, 64))))
         response = self._rig(spec).response(
@@ -80,7 +91,7 @@ class PyBulletSimulator:
         self, spec: RigSpec, parameters: Mapping[str, float], track: TrackRun
     ) -> FloatArray:
         """Spectra (C x F) of ``spec`` at ``parameters`` on ``track``."""
-        return simulate_spectra(spec, parameters, track.geometry, track.speed)
+        return simulate_spectra(spec, parameters, track.geometry, track.speed, track.design)
 
 
 def make_simulator(kind: str) -> Simulator:

@@ -6,6 +6,7 @@ Public API (imported lazily so that ``import susp_bo.rig`` does not start PyBull
 * :class:`Rig`, :class:`RigResponse`, :class:`SimulationFailed`, :func:`synthetic_track`
   — the time-domain simulator ``h_sim(x, w)`` on PyBullet.
 * :class:`LinearisedRig` — the frequency-domain model of the same spec.
+* :class:`TrackDesign`, :func:`load_line` — the line's design (curves, cant, gradient).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ _EXPORTS = {
     "RigResponse": "susp_bo.rig.response",
     "SimulationFailed": "susp_bo.rig.response",
     "LinearisedRig": "susp_bo.rig.linear",
+    "TrackDesign": "susp_bo.rig.design",
+    "load_line": "susp_bo.rig.line_file",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -62,6 +62,9 @@ class ForceModel:
         self.linear = np.ascontiguousarray(
             -np.hstack([stiffness[:n] + creep_k, damping[:n], creep_c])
         )
+        # the linear elements alone (no creep), for the design offsets of a curved line
+        self.elastic = np.ascontiguousarray(-stiffness[:n].T)  # (width x n)
+        self.viscous = np.ascontiguousarray(-damping[:n].T)
         self.stacked = np.zeros(3 * width)
         # nonlinear rows: [bilinear dampers (velocity), dead bands (position), series (position)]
         self.dead_on = not linear_elements and dead.group.size > 0
@@ -88,6 +91,20 @@ class ForceModel:
         self.argument = np.zeros(self.n_bilinear + self.n_series)
         self.forces = np.zeros(g_nl.shape[0])
 
+    def design_forces(self, offsets: FloatArray, rates: FloatArray) -> FloatArray:
+        """Generalised forces of the linear elements on design offsets, (T x n).
+
+        Args:
+            offsets: ``[d, x_d]`` reference poses (T x (n + n_in)), see :mod:`susp_bo.rig.curving`.
+            rates: their time derivatives (T x (n + n_in)).
+        """
+        return offsets @ self.elastic + rates @ self.viscous
+
+    def series_positions(self, z: FloatArray) -> FloatArray:
+        """Series-element deflections (n_s,) for ``[q, x]`` plus design offsets (n + n_in,)."""
+        nb, nd = self.n_bilinear, self.n_dead
+        return self.kinematics[nb + nd :] @ z
+
     @property
     def n_strokes(self) -> int:
         """Number of series-damper strokes (internal states)."""
@@ -101,6 +118,8 @@ class ForceModel:
         xdot: FloatArray,
         speed_m_s: float,
         stroke: FloatArray,
+        offset: FloatArray | None = None,
+        offset_rate: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray]:
         """Generalised forces (n,) and stroke rates (n_s,) m/s.
 
@@ -109,6 +128,9 @@ class ForceModel:
             x, xdot: track inputs and rates (n_in,).
             speed_m_s: speed (m/s).
             stroke: series-damper strokes (n_s,) m.
+            offset, offset_rate: design offsets ``[d, x_d]`` and rates (n + n_in,) seen by
+                the nonlinear elements (a curved line); the linear elements' share is
+                :meth:`design_forces`, added by the caller. None on tangent track.
         """
         z = self.stacked
         n, width = self.n, self.n + self.n_in
@@ -119,10 +141,16 @@ class ForceModel:
         z[2 * width :] = z[width : 2 * width] / speed_m_s
         generalised = self.linear @ z
         nb, nd = self.n_bilinear, self.n_dead
-        position = self.kinematics @ z[:width]
+        if offset is None:
+            position = self.kinematics @ z[:width]
+        else:
+            position = self.kinematics @ (z[:width] + offset)
         f = self.forces
         argument = self.argument
-        argument[:nb] = self.kinematics[:nb] @ z[width : 2 * width]
+        if offset_rate is None:
+            argument[:nb] = self.kinematics[:nb] @ z[width : 2 * width]
+        else:
+            argument[:nb] = self.kinematics[:nb] @ (z[width : 2 * width] + offset_rate)
         if nd:
             f[nb : nb + nd] = dead_band_force(position[nb : nb + nd], *self.dead_params)
         series_force = self.k_series * (position[nb + nd :] - stroke)

@@ -27,6 +27,8 @@ import scipy.fft
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import INPUTS_PER_AXLE, Assembly, build_assembly
+from susp_bo.rig.design import TrackDesign
+from susp_bo.rig.linear_curving import CurvedLineMethods
 from susp_bo.rig.response import RigResponse
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import Spectra, SpectrumSettings
@@ -66,8 +68,18 @@ class StateSpace:
     assembly: Assembly
 
 
-def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
-    """Linearise an assembly about the static equilibrium at speed ``speed_m_s`` (m/s)."""
+def state_space(
+    assembly: Assembly, speed_m_s: float, dead_band_slopes: FloatArray | None = None
+) -> StateSpace:
+    """Linearise an assembly about the static equilibrium at speed ``speed_m_s`` (m/s).
+
+    Args:
+        assembly: the vehicle.
+        speed_m_s: speed (m/s), > 0.
+        dead_band_slopes: slopes (N/m) of the dead bands at the operating point
+            (m_dead,), e.g. about a steady curving state
+            (:func:`~susp_bo.rig.linear_curving.operating_points`); None: at u = 0.
+    """
     if not speed_m_s > 0:
         raise ValueError(f"speed_m_s: got {speed_m_s}; must be > 0 m/s")
     n, n_in = assembly.n_dofs, assembly.n_inputs
@@ -77,6 +89,8 @@ def state_space(assembly: Assembly, speed_m_s: float) -> StateSpace:
     c_in = np.zeros((n, n_in))
     for elements in (assembly.springs, assembly.dead_bands):
         g, h, slope = elements.group.coordinates, elements.group.inputs, elements.slope()
+        if dead_band_slopes is not None and elements is assembly.dead_bands:
+            slope = np.asarray(dead_band_slopes, dtype=np.float64)
         k += g.T @ (slope[:, None] * g)
         k_in -= g.T @ (slope[:, None] * h)
     g, h, slope = (
@@ -180,7 +194,7 @@ def _hann_kernel(offsets_hz: FloatArray, segment_s: float) -> FloatArray:
     return kernel / (np.sum(kernel, axis=-1) * spacing)[..., None]
 
 
-class LinearisedRig:
+class LinearisedRig(CurvedLineMethods):
     """Frequency-domain model of a rig spec (same elements as the PyBullet world).
 
     Args:
@@ -195,9 +209,14 @@ class LinearisedRig:
             tuple, tuple[object, tuple[ComplexArray, ComplexArray], tuple[int, int]]
         ] = {}
 
-    def _system(self, parameters: Mapping[str, float] | None, speed_m_s: float) -> StateSpace:
+    def _system(
+        self,
+        parameters: Mapping[str, float] | None,
+        speed_m_s: float,
+        dead_band_slopes: FloatArray | None = None,
+    ) -> StateSpace:
         spec = self.spec.with_parameters(parameters)
-        return state_space(build_assembly(spec), speed_m_s)
+        return state_space(build_assembly(spec), speed_m_s, dead_band_slopes)
 
     def eigenvalues(
         self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
@@ -278,6 +297,7 @@ class LinearisedRig:
         psd: TrackPSD | None = None,
         speed_m_s: float | None = None,
         components: tuple[str, ...] = INPUTS_PER_AXLE,
+        design: TrackDesign | None = None,
     ) -> FloatArray:
         """One-sided acceleration PSD of every sensor, (F x C) (m/s²)²/Hz, on random track.
 
@@ -287,11 +307,37 @@ class LinearisedRig:
             psd: track spectra (default: the rig's track quality).
             speed_m_s: constant speed (default: the rig's).
             components: track inputs to include (``vertical``, ``cross_level``, ``alignment``).
+            design: a line with curves: the PSD is the time-weighted mean over the
+                operating points of the recorded stretch (:meth:`operating_points`);
+                None is tangent track.
+
+        Raises:
+            LinearModelNotApplicable: the design puts a dead band into contact.
         """
+        if design is not None:
+            points = self.operating_points(design, parameters, speed_m_s)
+            return sum(
+                point.weight
+                * self._psd(
+                    frequencies_hz, parameters, psd, speed_m_s, components, point.dead_band_slopes
+                )
+                for point in points
+            )
+        return self._psd(frequencies_hz, parameters, psd, speed_m_s, components)
+
+    def _psd(
+        self,
+        frequencies_hz: FloatArray,
+        parameters: Mapping[str, float] | None,
+        psd: TrackPSD | None,
+        speed_m_s: float | None,
+        components: tuple[str, ...],
+        dead_band_slopes: FloatArray | None = None,
+    ) -> FloatArray:
         speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
         psd = TrackPSD(self.spec.simulation.track_quality) if psd is None else psd
         fine = np.asarray(frequencies_hz, dtype=np.float64)
-        system = self._system(parameters, speed)
+        system = self._system(parameters, speed, dead_band_slopes)
         transfer = sensor_transfer(system, fine, self.spec.simulation.sample_rate_hz)
         axles = system.assembly.axle_positions_m
         omega = 2.0 * np.pi * fine
@@ -317,6 +363,7 @@ class LinearisedRig:
         psd: TrackPSD | None = None,
         speed_m_s: float | None = None,
         settings: SpectrumSettings | None = None,
+        design: TrackDesign | None = None,
     ) -> Spectra:
         """Expected Welch log-amplitude spectra on random track (the fast path).
 
@@ -325,6 +372,11 @@ class LinearisedRig:
             psd: track spectra (default: the rig's track quality).
             speed_m_s: constant speed (default: the rig's).
             settings: spectrum settings (default: the rig's).
+            design: a line with curves: the random part linearised about the
+                operating points along it (see :meth:`psd`) plus the Welch PSD of the
+                deterministic response to the design (:meth:`design_welch`: roll-out,
+                transients at the transitions) — the design's reference specific force
+                is removed, as from measured and PyBullet signals.
 
         Returns:
             Spectra (C x F) in ln((m/s²)/√Hz): the PSD convolved with the Hann
@@ -334,7 +386,7 @@ class LinearisedRig:
         resolution = 1.0 / settings.segment_s
         step = resolution / 8.0
         fine = np.arange(1, int(np.ceil((settings.f_max_hz + 6 * resolution) / step)) + 1) * step
-        power = self.psd(fine, parameters, psd, speed_m_s)
+        power = self.psd(fine, parameters, psd, speed_m_s, design=design)
         # expected Welch estimate at the Welch bins, then the band average of spectra.py
         bins = np.arange(0.0, settings.f_max_hz + 2 * resolution, resolution)
         both = np.concatenate([-fine[::-1], fine])
@@ -349,6 +401,8 @@ class LinearisedRig:
                 shape = np.sinc(offset) / np.where(near_one, 1.0, 1 - offset**2)
                 shape = np.where(near_one, 0.5, shape)
                 welch += (settings.segment_s * shape**2 / 1.5)[:, None] * line_power[None, :]
+        if design is not None:
+            welch += self.design_welch(design, parameters, speed, settings)[: bins.size]
         welch[bins == 0] = 0.0
         band = _band_average(welch.T, resolution, settings.band_edges_hz())
         return Spectra(settings.frequencies_hz(), self.spec.channels, 0.5 * np.log(band))

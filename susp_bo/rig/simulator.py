@@ -23,6 +23,13 @@ from numpy.typing import NDArray
 
 from susp_bo.rig._pybullet import pybullet
 from susp_bo.rig.assembly import Assembly, build_assembly
+from susp_bo.rig.curving import (
+    DesignInputs,
+    design_inputs,
+    reference_specific_force,
+    steady_state,
+)
+from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.dynamics import ForceModel
 from susp_bo.rig.response import RigResponse, SimulationFailed
 from susp_bo.rig.sensors import sample_decimated
@@ -40,6 +47,7 @@ __all__ = [
     "axle_span_m",
     "excitation_for_run",
     "synthetic_track",
+    "synthetic_track_length_m",
 ]
 
 
@@ -107,11 +115,20 @@ def synthetic_track(
     quality: str | None = None,
 ) -> TrackGeometry:
     """A German-PSD track long enough for one default run of ``spec`` (seeded)."""
+    length = synthetic_track_length_m(spec, speed_m_s, duration_s)
+    return TrackGeometry.synthetic(
+        quality=quality or spec.simulation.track_quality, length_m=length, seed=seed
+    )
+
+
+def synthetic_track_length_m(
+    spec: RigSpec, speed_m_s: float | None = None, duration_s: float | None = None
+) -> float:
+    """Length (m) of :func:`synthetic_track`: the run, the axle span and 10 m to spare."""
     sim = spec.simulation
     speed = sim.speed_m_s if speed_m_s is None else speed_m_s
     duration = sim.duration_s if duration_s is None else duration_s
-    length = speed * (sim.warm_up_s + duration) + axle_span_m(spec) + 10.0
-    return TrackGeometry.synthetic(quality=quality or sim.track_quality, length_m=length, seed=seed)
+    return speed * (sim.warm_up_s + duration) + axle_span_m(spec) + 10.0
 
 
 def integrate(
@@ -122,6 +139,8 @@ def integrate(
     record_every: int,
     limit: float,
     names: tuple[str, ...],
+    design: DesignInputs | None = None,
+    stroke0: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Step the world through the excitation; states every ``record_every`` steps.
 
@@ -133,6 +152,8 @@ def integrate(
         record_every: steps between recorded states.
         limit: divergence threshold on |q| (m or rad).
         names: coordinate names for messages.
+        design: the terms of a track design at the step times (curved line), or None.
+        stroke0: initial series-damper strokes (n_s,) m; default zeros.
 
     Returns:
         ``(q, q̇)`` each (n_records x n) at steps 0, record_every, …, n_steps.
@@ -160,7 +181,10 @@ def integrate(
     set_torques = pybullet.setJointMotorControlArray
     step = pybullet.stepSimulation
     torque = pybullet.TORQUE_CONTROL
-    stroke = np.zeros(forces.n_strokes)
+    stroke = np.zeros(forces.n_strokes) if stroke0 is None else np.array(stroke0, dtype=float)
+    if design is not None:
+        offsets, rates = design.offsets, design.rates
+        loads = design.loads + forces.design_forces(offsets, rates)
     records = n_steps // record_every + 1
     q_out = np.empty((records, forces.n))
     qd_out = np.empty((records, forces.n))
@@ -180,7 +204,13 @@ def integrate(
                 )
         if j == n_steps:
             break
-        generalised, stroke_rate = forces(q, qd, x_all[j], xd_all[j], speed_m_s[j], stroke)
+        if design is None:
+            generalised, stroke_rate = forces(q, qd, x_all[j], xd_all[j], speed_m_s[j], stroke)
+        else:
+            generalised, stroke_rate = forces(
+                q, qd, x_all[j], xd_all[j], speed_m_s[j], stroke, offsets[j], rates[j]
+            )
+            generalised += loads[j]
         stroke += dt * stroke_rate
         set_torques(body, joints, torque, forces=generalised, physicsClientId=client)
         step(physicsClientId=client)
@@ -229,15 +259,21 @@ class Rig:
         speed: SpeedInput | None = None,
         parameters: Mapping[str, float] | None = None,
         duration_s: float | None = None,
+        design: TrackDesign | None = None,
     ) -> RigResponse:
         """Run the vehicle over a track and record the sensors.
 
         Args:
-            geometry: the track.
+            geometry: the track (irregularities).
             speed: constant speed (m/s) or a :class:`SpeedProfile` (its duration is the
                 run, warm-up included); default the rig's speed.
             parameters: named parameter values (validated against C_w).
             duration_s: recorded time after the warm-up (s); default the rig's.
+            design: the line's design (curves, cant, gradient) on the geometry's
+                chainage; None is tangent track (bit-for-bit the tangent-track code
+                path). The run starts from the quasi-static curving state at t = 0
+                (:func:`~susp_bo.rig.curving.steady_state`); the response carries the
+                design's quasi-static specific force, removed before the spectra.
 
         Returns:
             The response after the warm-up.
@@ -266,26 +302,43 @@ class Rig:
         )
         profile = _speed_profile(speed, total)
         speeds = profile.speed_at(excitation.time_s)
+        forces = ForceModel(assembly, self.linear_elements)
+        terms, stroke0, q0 = None, None, None
+        if design is not None:
+            terms, stroke0, q0 = _design_start(
+                spec, assembly, forces, design, profile, excitation.time_s, sim.time_step_s
+            )
         self._world.build(assembly)
+        if q0 is not None:
+            self._world.set_state(list(q0), [0.0] * len(q0))
         q, qd = integrate(
             self._world,
-            ForceModel(assembly, self.linear_elements),
+            forces,
             excitation,
             speeds,
             per_sample,
             sim.max_displacement_m,
             assembly.dof_names,
+            terms,
+            stroke0,
         )
         start = round(sim.warm_up_s / (sim.time_step_s * per_sample))
         time, signals = sample_decimated(
             assembly, q[start:], qd[start:], per_sample * sim.time_step_s
         )
+        time = time + start * per_sample * sim.time_step_s
+        quasi_static = None
+        if terms is not None:
+            recorded = terms.sensors[::per_sample][start:]  # (n_k x C) at the record steps
+            signals = signals + (0.5 * (recorded[1:] + recorded[:-1])).T
+            quasi_static = reference_specific_force(assembly, spec.sensors, design, profile, time)
         return RigResponse(
-            time + start * per_sample * sim.time_step_s,
+            time,
             assembly.channels,
             signals,
             sim.sample_rate_hz,
             spec.spectrum,
+            quasi_static_m_s2=quasi_static,
         )
 
     def spectra(
@@ -294,6 +347,35 @@ class Rig:
         speed: SpeedInput | None = None,
         parameters: Mapping[str, float] | None = None,
         settings: SpectrumSettings | None = None,
+        design: TrackDesign | None = None,
     ) -> Spectra:
-        """Log-amplitude spectra of a run (settings default to the rig's)."""
-        return self.simulate(geometry, speed, parameters).spectra(settings)
+        """Log-amplitude spectra of a run (settings default to the rig's).
+
+        With a ``design``, the design's quasi-static specific force is removed from
+        the signals first (:meth:`RigResponse.spectra`).
+        """
+        return self.simulate(geometry, speed, parameters, design=design).spectra(settings)
+
+
+def _design_start(
+    spec: RigSpec,
+    assembly: Assembly,
+    forces: ForceModel,
+    design: TrackDesign,
+    profile: SpeedProfile,
+    times: FloatArray,
+    time_step_s: float,
+) -> tuple[DesignInputs, FloatArray, FloatArray]:
+    """Design terms at the step times, initial strokes and the quasi-static start state.
+
+    Raises:
+        ValueError: the design does not cover every body and sensor over the run.
+    """
+    rear = float(np.min(assembly.axle_positions_m))
+    car = -rear + profile.distance_m(times)  # rearmost axle at s = 0 at t = 0
+    xs = [float(b.cg_m[0]) for b in assembly.bodies] + [s.position_m[0] for s in spec.sensors]
+    design.check_covers(float(car[0] + min(xs)), float(car[-1] + max(xs)))
+    terms = design_inputs(assembly, design, car, profile.speed_at(times), time_step_s, spec.sensors)
+    q0, _ = steady_state(assembly, terms.offsets[0], terms.loads[0])
+    z0 = np.concatenate([q0, np.zeros(assembly.n_inputs)]) + terms.offsets[0]
+    return terms, forces.series_positions(z0), q0

@@ -180,6 +180,27 @@ def _band_average(psd: FloatArray, bin_width_hz: float, edges_hz: FloatArray) ->
     return psd @ weights.T
 
 
+def welch_psd(data: FloatArray, sample_rate_hz: float, settings: SpectrumSettings) -> FloatArray:
+    """Welch PSD (C x K) (m/s²)²/Hz of signals (C x n_t) on bins ``k fs / nperseg`` (step 1).
+
+    Hann segments of ``segment_s`` (at most the record), ``overlap``, mean removed per
+    segment, one-sided density: the estimator behind every spectrum here.
+    """
+    nperseg = min(max(round(settings.segment_s * sample_rate_hz), 2), data.shape[-1])
+    noverlap = min(round(settings.overlap * nperseg), nperseg - 1)
+    _, psd = scipy.signal.welch(
+        data,
+        fs=sample_rate_hz,
+        window="hann",
+        nperseg=nperseg,
+        noverlap=noverlap,
+        detrend="constant",
+        scaling="density",
+        axis=-1,
+    )
+    return psd
+
+
 def log_amplitude_spectra(
     signals: ArrayLike,
     sample_rate_hz: float,
@@ -216,17 +237,7 @@ def log_amplitude_spectra(
     rate = require_positive("sample_rate_hz", sample_rate_hz, "Hz")
     settings.check_sample_rate(rate, data.shape[1] / rate)
     nperseg = min(max(round(settings.segment_s * rate), 2), data.shape[1])
-    noverlap = min(round(settings.overlap * nperseg), nperseg - 1)
-    _, psd = scipy.signal.welch(
-        data,
-        fs=rate,
-        window="hann",
-        nperseg=nperseg,
-        noverlap=noverlap,
-        detrend="constant",
-        scaling="density",
-        axis=-1,
-    )
+    psd = welch_psd(data, rate, settings)
     band_psd = _band_average(psd, rate / nperseg, settings.band_edges_hz())
     if np.any(band_psd <= 0):
         row, column = np.argwhere(band_psd <= 0)[0]

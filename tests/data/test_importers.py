@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from hypothesis import strategies as st
 
 from susp_bo.data.importers import read_csv_run, read_mat_run, write_csv_run, write_mat_run
 from susp_bo.data.measured import MeasuredDataError, MeasuredRun
+from susp_bo.rig.line_file import design_from_segments
 from susp_bo.rig.track import GEOMETRY_COMPONENTS
 
 
@@ -183,3 +185,51 @@ def test_random_csv_text_never_crashes(text: str) -> None:
         except MeasuredDataError:
             return
         assert isinstance(run, MeasuredRun) and run.n_samples >= 2
+
+
+def _with_design(run: MeasuredRun) -> MeasuredRun:
+    design = design_from_segments(
+        [
+            {"type": "tangent", "length_m": 20.0},
+            {"type": "transition", "length_m": 40.0},
+            {
+                "type": "curve",
+                "length_m": 60.0,
+                "radius_m": 2500.0,
+                "cant_mm": 110.0,
+                "direction": "left",
+                "gradient_permille": 6.0,
+            },
+        ]
+    )
+    return dataclasses.replace(run, design=design)
+
+
+def test_csv_design_columns_round_trip(small_run: MeasuredRun, tmp_path: Path) -> None:
+    run = _with_design(small_run)
+    files = [tmp_path / name for name in ("acc.csv", "geo.csv", "speed.csv")]
+    write_csv_run(run, *files)
+    assert "curvature_1_m,cant_m,gradient" in files[1].read_text().splitlines()[0]
+    loaded = read_csv_run(*files)
+    s = run.geometry.position_m  # the design comes back sampled on the geometry's rows
+    np.testing.assert_allclose(loaded.design.curvature(s), run.design.curvature(s), atol=1e-15)
+    np.testing.assert_allclose(loaded.design.cant(s), run.design.cant(s), atol=1e-15)
+    np.testing.assert_allclose(loaded.design.grade(s)[0], run.design.grade(s)[0], atol=1e-15)
+    text = files[1].read_text().replace(",gradient\n", ",slope\n", 1)
+    _write(files[1], text)
+    with pytest.raises(MeasuredDataError, match=r"geo\.csv: columns must be .*missing \['gradient"):
+        read_csv_run(*files)
+
+
+def test_mat_design_variables_round_trip_and_units(small_run: MeasuredRun, tmp_path: Path) -> None:
+    run = _with_design(small_run)
+    path = tmp_path / "run.mat"
+    write_mat_run(run, path)
+    loaded = read_mat_run(path)
+    np.testing.assert_array_equal(loaded.design.chainage_m, run.design.chainage_m)
+    np.testing.assert_array_equal(loaded.design.cant_m, run.design.cant_m)
+    variables = scipy.io.loadmat(path)
+    variables["design_cant_m"] = variables["design_cant_m"] * 1000.0  # mm written as m
+    scipy.io.savemat(path, {k: v for k, v in variables.items() if not k.startswith("__")})
+    with pytest.raises(MeasuredDataError, match=r"run\.mat\.cant_m.*suggests millimetres"):
+        read_mat_run(path)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Callable
 from pathlib import Path
@@ -23,6 +24,7 @@ from susp_bo.data.measured import (
     save_run,
     validate_run,
 )
+from susp_bo.rig.line_file import design_from_segments
 from susp_bo.rig.spectra import SpectrumSettings, log_amplitude_spectra
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
@@ -202,7 +204,7 @@ def test_file_layout_matches_the_documentation(small_run: MeasuredRun, tmp_path:
     with h5py.File(path, "r") as file:
         file.visit(items.append)
         assert file.attrs["format"] == "susp_bo.measured_run"
-        assert file.attrs["format_version"] == 1
+        assert file.attrs["format_version"] == 2
         assert file["geometry"].attrs["spacing_m"] == small_run.geometry.spacing_m
         assert file["geometry/cross_level_rad"].attrs["units"] == "rad"
         assert file["accelerations/data"].shape == (2, 400)
@@ -254,3 +256,73 @@ def test_geometry_and_speed_survive_variable_speed(tmp_path: Path) -> None:
     loaded = load_run(save_run(run, tmp_path / "r.h5"))
     _assert_same_run(run, loaded)
     assert loaded.speed.distance_m(0.1) == pytest.approx(0.05 * 11 + 0.05 * 11.5)
+
+
+FIXTURES = Path(__file__).parent / "fixtures"
+
+
+def test_a_version_1_file_still_loads(run_factory: Callable) -> None:
+    """run_v1.h5 was written by the version-1 writer (main at 079b3c4, make_run(seed=5, 3 s))."""
+    run = load_run(FIXTURES / "run_v1.h5")
+    expected = run_factory(seed=5, duration_s=3.0)
+    _assert_same_run(expected, run)
+    assert run.design is None
+    assert run.content_digest() == expected.content_digest()  # the v1 checksum still verifies
+    with h5py.File(FIXTURES / "run_v1.h5", "r") as file:
+        assert file.attrs["format_version"] == 1
+
+
+def _designed(run: MeasuredRun) -> MeasuredRun:
+    design = design_from_segments(
+        [
+            {"type": "tangent", "length_m": 30.0},
+            {"type": "transition", "length_m": 30.0},
+            {
+                "type": "curve",
+                "length_m": 60.0,
+                "radius_m": 3000.0,
+                "cant_mm": 90.0,
+                "direction": "right",
+                "gradient_permille": 3.0,
+            },
+        ]
+    )
+    return dataclasses.replace(run, design=design)
+
+
+def test_design_round_trip_and_layout(small_run: MeasuredRun, tmp_path: Path) -> None:
+    run = _designed(small_run)
+    assert run.content_digest() != small_run.content_digest()
+    loaded = load_run(save_run(run, tmp_path / "run.h5"))
+    _assert_same_run(run, loaded)
+    for name in ("chainage_m", "curvature_1_m", "cant_m", "gradient"):
+        np.testing.assert_array_equal(getattr(loaded.design, name), getattr(run.design, name))
+    assert loaded.content_digest() == run.content_digest()
+    with h5py.File(tmp_path / "run.h5", "r") as file:
+        assert file["design/curvature_1_m"].attrs["units"] == "1/m"
+        assert file["design/cant_m"].attrs["units"] == "m"
+    validate_run(loaded)
+
+
+def test_bad_designs_in_files_are_refused_naming_the_file(
+    small_run: MeasuredRun, tmp_path: Path
+) -> None:
+    path = save_run(_designed(small_run), tmp_path / "run.h5")
+    with open(path, "r+b") as handle:  # unseal: edited by another tool
+        handle.write(b"\0" * 512)
+    with h5py.File(path, "r+") as file:
+        del file.attrs["content_sha256"]
+        file["design/cant_m"][...] = file["design/cant_m"][()] * 1000.0  # mm written as m
+    with pytest.raises(MeasuredDataError, match=r"run.h5:/design.cant_m.*suggests millimetres"):
+        load_run(path)
+    with h5py.File(path, "r+") as file:
+        file["design/cant_m"][...] = file["design/cant_m"][()] / 1000.0
+        file.attrs["format_version"] = 1
+    with pytest.raises(MeasuredDataError, match=r"run.h5: /design needs format_version >= 2"):
+        load_run(path)
+
+
+def test_validate_flags_a_design_that_does_not_cover_the_run(small_run: MeasuredRun) -> None:
+    short = design_from_segments([{"type": "tangent", "length_m": 50.0}])
+    with pytest.raises(MeasuredDataError, match=r"design record does not cover the run"):
+        validate_run(dataclasses.replace(small_run, design=short), source="run")
