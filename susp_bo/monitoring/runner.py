@@ -193,8 +193,11 @@ def monitor(
         workers=workers,
         scheduler=scheduler,
     )
-    spec = load_rig_spec(base.rig)
-    names = base.check_parameters(spec.calibration_names)
+    try:
+        spec = load_rig_spec(base.rig)
+        names = base.check_parameters(spec.calibration_names)
+    except (FileNotFoundError, ValueError) as error:
+        raise MonitorError(f"rig/parameters: {error}") from None
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
     for campaign in campaigns:  # every input checked before the first simulation
