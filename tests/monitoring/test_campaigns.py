@@ -55,11 +55,9 @@ def test_campaigns_from_metadata_and_manifests_sorted_by_vehicle_then_date(tmp_p
 
 def test_missing_date_names_the_folder_and_the_fix(tmp_path: Path) -> None:
     folder = _campaign(tmp_path / "c", {"vehicle": "A"})
-    with pytest.raises(
-        CampaignError, match=r"no date for this campaign; give it in .*campaign.toml"
-    ):
+    with pytest.raises(CampaignError, match=r"no date for this campaign; give it in") as caught:
         read_campaign(folder)
-    assert str(folder) in str(pytest.raises(CampaignError, read_campaign, folder).value)
+    assert str(folder) in str(caught.value) and "campaign.toml" in str(caught.value)
 
 
 def test_missing_vehicle_is_refused(tmp_path: Path) -> None:
