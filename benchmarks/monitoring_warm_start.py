@@ -17,6 +17,19 @@ each posterior against the reference. Target (issue 13): warm reaches MMTV <= 0.
 <= 1/3 of the cold start's simulator runs. Prints the table and the ratio.
 
     python benchmarks/monitoring_warm_start.py [--quick]
+
+Measured (2026-11-23, shared 2-core machine under load, wall 1409 s; warm design 6 points:
+4 around the previous posterior, 2 over C_w; batches of 4; no check points):
+
+    reference (cold, 200 evaluations): damper 32.95 [32.10, 33.82] kN·s/m (truth 33),
+    yaw damper 5.06 [4.03, 6.68] MN·s/m (truth 4.9)
+    budget (evaluations)   12     18     24     36     48        6      8     12     16     24
+    cold MMTV             .679   .636   .552   .080   .038
+    warm MMTV                                                 .627   .958   .391   .240   .113
+
+Cold reaches MMTV <= 0.05 at 48 evaluations (144 simulator runs). Warm is better than cold
+at equal budget (24: 0.113 vs 0.552) but did not reach 0.05 within the 24 evaluations tried,
+so the target (<= 16 evaluations = 1/3 of cold) is NOT met with this design.
 """
 
 from __future__ import annotations
