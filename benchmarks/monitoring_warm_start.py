@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -109,16 +110,33 @@ def settings(budget: int, chains: int = 256, draws: int = 1000, batch: int = 4):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer budgets")
+    parser.add_argument("--cold", type=int, nargs="*", help="cold budgets (evaluations)")
+    parser.add_argument("--warm", type=int, nargs="*", help="warm budgets (evaluations)")
+    parser.add_argument("--widen", type=float, default=2.0, help="warm box half-width factor")
+    parser.add_argument("--design", type=int, default=6, help="warm design size")
+    parser.add_argument("--global-points", type=int, default=2, help="warm points over C_w")
+    parser.add_argument("--cache", type=Path, help="folder caching the two reference posteriors")
     args = parser.parse_args()
     cold_budgets = [12, 24, 36] if args.quick else [12, 18, 24, 36, 48, 72]
     warm_budgets = [8, 12] if args.quick else [6, 8, 12, 16, 24]
+    cold_budgets = cold_budgets if args.cold is None else args.cold
+    warm_budgets = warm_budgets if args.warm is None else args.warm
     started = time.perf_counter()
     first, bounds = likelihood(FIRST, seed=11)
     second, _ = likelihood(SECOND, seed=12)
-    previous = calibrate(first, bounds, NAMES, settings(48), progress=False).samples
-    reference = calibrate(
-        second, bounds, NAMES, settings(200, chains=512, draws=2000, batch=8), progress=False
-    ).samples
+    cached = args.cache is not None and (args.cache / "reference.npy").is_file()
+    if cached:
+        previous = np.load(args.cache / "previous.npy")
+        reference = np.load(args.cache / "reference.npy")
+    else:
+        previous = calibrate(first, bounds, NAMES, settings(48), progress=False).samples
+        reference = calibrate(
+            second, bounds, NAMES, settings(200, chains=512, draws=2000, batch=8), progress=False
+        ).samples
+        if args.cache is not None:
+            args.cache.mkdir(parents=True, exist_ok=True)
+            np.save(args.cache / "previous.npy", previous)
+            np.save(args.cache / "reference.npy", reference)
     print(
         f"first campaign posterior median {np.median(previous, 0)}, reference median "
         f"{np.median(reference, 0)}, 95 % of the reference: "
@@ -130,7 +148,14 @@ def main() -> None:
         rows.append(("cold", budget, mmtv(result.samples, reference, bounds)))
         print(f"cold  budget {budget:3d}: {budget * NU:4d} simulator runs, MMTV {rows[-1][2]:.3f}")
     for budget in warm_budgets:
-        design = warm_start_design(previous, bounds, size=min(6, budget), seed=5)
+        design = warm_start_design(
+            previous,
+            bounds,
+            size=min(args.design, budget),
+            seed=5,
+            widen=args.widen,
+            global_points=args.global_points,
+        )
         result = calibrate(second, bounds, NAMES, settings(budget), progress=False, design=design)
         rows.append(("warm", budget, mmtv(result.samples, reference, bounds)))
         print(f"warm  budget {budget:3d}: {budget * NU:4d} simulator runs, MMTV {rows[-1][2]:.3f}")
