@@ -24,18 +24,19 @@ Measured (2026-11-23, shared 2-core machine under load; batches of 4, no check p
     yaw damper 5.06 [4.03, 6.68] MN·s/m (truth 4.9)
 
     cold (space-filling design of 10):
-      evaluations   12    18    24    36    42    48
-      MMTV        .679  .636  .552  .080  .066  .038
-    warm, --design 6 --widen 2 --global-points 2 (the defaults of the first run):
+      evaluations   12    18    24    36    42    48    72
+      MMTV        .679  .636  .552  .080  .066  .038  .030
+    warm, --design 6 --widen 2 --global-points 2 (the first run's design):
       evaluations    6     8    12    16    24
       MMTV        .627  .958  .391  .240  .113
-    warm, --design 10 --widen 3 --global-points 3:
+    warm, --design 10 --widen 3 --global-points 3 (now the defaults):
       evaluations   16    20    24    32
       MMTV        .071  .048  .029  .017
 
-    commands: python benchmarks/monitoring_warm_start.py --cache C   (cold + first warm row);
-    python benchmarks/monitoring_warm_start.py --cache C --cold [42] --warm 16 20 24 32 \
-        --design 10 --widen 3 --global-points 3
+    commands: (1) python benchmarks/monitoring_warm_start.py --cold 12 18 24 36 48 72
+    --warm 6 8 12 16 24 --design 6 --widen 2 --global-points 2 (cold row, first warm row;
+    run without a cache, 1409 s); (2) the same reference cached (--cache C, identical seeds)
+    with --cold --warm 32, --cold --warm 16 24, --cold 42 --warm 20 (now the defaults)
 
 Cold reaches MMTV <= 0.05 at 48 evaluations (144 simulator runs), the better warm design at
 20 (60 runs): 0.42 of the cold start's runs. The target (<= 1/3, i.e. <= 16 evaluations) is
@@ -124,13 +125,13 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="fewer budgets")
     parser.add_argument("--cold", type=int, nargs="*", help="cold budgets (evaluations)")
     parser.add_argument("--warm", type=int, nargs="*", help="warm budgets (evaluations)")
-    parser.add_argument("--widen", type=float, default=2.0, help="warm box half-width factor")
-    parser.add_argument("--design", type=int, default=6, help="warm design size")
-    parser.add_argument("--global-points", type=int, default=2, help="warm points over C_w")
+    parser.add_argument("--widen", type=float, default=3.0, help="warm box half-width factor")
+    parser.add_argument("--design", type=int, default=10, help="warm design size")
+    parser.add_argument("--global-points", type=int, default=3, help="warm points over C_w")
     parser.add_argument("--cache", type=Path, help="folder caching the two reference posteriors")
     args = parser.parse_args()
     cold_budgets = [12, 24, 36] if args.quick else [12, 18, 24, 36, 48, 72]
-    warm_budgets = [8, 12] if args.quick else [6, 8, 12, 16, 24]
+    warm_budgets = [16, 24] if args.quick else [16, 20, 24, 32]
     cold_budgets = cold_budgets if args.cold is None else args.cold
     warm_budgets = warm_budgets if args.warm is None else args.warm
     started = time.perf_counter()
