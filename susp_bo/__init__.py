@@ -22,6 +22,8 @@ Calibration
     :class:`CalibrationSettings`, :func:`calibrate`, :class:`CalibrationResult`,
     :class:`PosteriorSummary`, :class:`StudyConfig`, :func:`load_study_config`,
     :func:`run_study`.
+Monitoring
+    :func:`monitor` (every campaign of a folder calibrated; trends, P(outside), alarms).
 Infrastructure
     :class:`EvaluationStore`, :func:`make_executor`, :func:`run_tasks`.
 """
@@ -65,6 +67,7 @@ _EXPORTS: dict[str, str] = {
     "StudyConfig": "susp_bo.study_config",
     "load_study_config": "susp_bo.study_config",
     "run_study": "susp_bo.calibration.study",
+    "monitor": "susp_bo.monitoring.runner",
     "EvaluationStore": "susp_bo.store",
     "make_executor": "susp_bo.execution",
     "run_tasks": "susp_bo.execution",
@@ -101,6 +104,7 @@ __all__ = [
     "log_amplitude_spectra",
     "log_likelihood",
     "make_executor",
+    "monitor",
     "rig_path",
     "run_study",
     "run_tasks",
@@ -117,6 +121,7 @@ if TYPE_CHECKING:  # pragma: no cover - static names for type checkers and IDEs
     from susp_bo.data.measured import MeasuredDataError, MeasuredRun, load_run, load_runs, save_run
     from susp_bo.data.synthetic import synthesize_runs
     from susp_bo.execution import make_executor, run_tasks
+    from susp_bo.monitoring.runner import monitor
     from susp_bo.rig.catalog import available_rigs, rig_path
     from susp_bo.rig.linear import LinearisedRig
     from susp_bo.rig.response import RigResponse, SimulationFailed

@@ -160,6 +160,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="likelihood evaluations of the recalibration (default: the study's)",
     )
     diagnose.set_defaults(handler=_diagnose)
+
+    from susp_bo.commands.monitor import add_parser as add_monitor_parser
+
+    add_monitor_parser(sub)
     return parser
 
 

@@ -10,7 +10,7 @@ import pytest
 from susp_bo import __version__
 from susp_bo.cli import build_parser, main
 
-COMMANDS = ("demo", "simulate", "synth", "calibrate", "diagnose", "import")
+COMMANDS = ("demo", "simulate", "synth", "calibrate", "diagnose", "import", "monitor")
 
 
 def test_help_lists_every_command() -> None:

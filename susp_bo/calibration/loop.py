@@ -291,6 +291,7 @@ def calibrate(
     settings: CalibrationSettings | None = None,
     progress: bool = True,
     on_iteration: Callable[[IterationReport], None] | None = None,
+    design: np.ndarray | None = None,
 ) -> CalibrationResult:
     """Bayesian calibration of w on C_w from log L evaluations (the paper's four steps).
 
@@ -302,6 +303,9 @@ def calibrate(
         settings: calibration settings (defaults if None).
         progress: show a progress bar of evaluations on stderr (susp_bo.progress).
         on_iteration: called with an :class:`IterationReport` after every batch.
+        design: (n0 x q) initial design in physical units, inside C_w, instead of the
+            space-filling one (a warm start, :mod:`susp_bo.monitoring.warm_start`);
+            None = the space-filling design of ``initial_design_size`` points.
 
     Returns:
         The :class:`CalibrationResult`.
@@ -316,7 +320,17 @@ def calibrate(
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
     bar = progress_bar(total=budget, desc="log L evaluations", unit="eval", disable=not progress)
-    x = space_filling_design(n0, b, _seed(settings.seed, 0, 0), settings.design_method)
+    if design is None:
+        x = space_filling_design(n0, b, _seed(settings.seed, 0, 0), settings.design_method)
+    else:
+        x = np.array(design, dtype=np.float64, copy=True)
+        if x.ndim != 2 or x.shape[1] != q or not 2 <= x.shape[0] <= budget:
+            raise ValueError(f"design: shape {x.shape}; expected (n0 x {q}), 2 <= n0 <= {budget}")
+        if np.any(x < b[0]) or np.any(x > b[1]):
+            raise ValueError("design: points outside the bounds C_w")
+        n0 = x.shape[0]
+        n_check = min(settings.check_points, budget - n0)
+        main_budget = budget - n_check
     y = _evaluate(evaluate, x)
     bar.update(n0)
     phase: Phase = "ego"

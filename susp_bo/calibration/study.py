@@ -58,6 +58,8 @@ STORE_NAME = "evaluations.sqlite"
 RESULT_NAME = "result.json"
 CONFIG_NAME = "study.toml"
 LOG_NAME = "study.log"
+SAMPLES_NAME = "posterior_samples.npy"
+MAX_SAVED_SAMPLES = 20_000
 
 
 class StudyError(ValueError):
@@ -483,10 +485,27 @@ def run_study(
     payload = json_ready(
         result_payload(study, result, n_simulations, time.perf_counter() - started)
     )
+    save_samples(out / SAMPLES_NAME, result.samples)  # before result.json: "finished" = both
     write_json(out / RESULT_NAME, payload)
     write_figures(study, result, out)
     log.info("result written: %s", out / RESULT_NAME)
     return payload, result
+
+
+def save_samples(path: Path, samples: np.ndarray, limit: int = MAX_SAVED_SAMPLES) -> Path:
+    """Posterior draws (n x q, physical units, calibration order), thinned to at most ``limit``.
+
+    The pooled draws are thinned with a regular stride (every chain contributes), so
+    probabilities computed from the file (e.g. P(outside an acceptable domain) in
+    :mod:`susp_bo.monitoring`) carry a Monte Carlo error of about
+    sqrt(p (1 - p) / n_eff). Written atomically (temp file then rename).
+    """
+    samples = np.asarray(samples, dtype=np.float64)
+    stride = max(1, -(-samples.shape[0] // limit))
+    temporary = path.with_name(path.name + ".tmp.npy")
+    np.save(temporary, np.ascontiguousarray(samples[::stride]))
+    temporary.replace(path)
+    return path
 
 
 def write_figures(study: PreparedStudy, result: CalibrationResult, out: Path) -> list[Path]:

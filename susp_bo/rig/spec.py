@@ -88,6 +88,11 @@ class CalibrationParameter:
         reference: nominal value, within [lower, upper].
         unit: physical unit, e.g. ``N/m``.
         description: one line for engineers.
+        acceptable: maintenance limits ``(lo, hi)`` in the same unit, strictly
+            inside ``(lower, upper)`` (the admissible interval must be wider, so
+            that a posterior can leave the acceptable domain); None = no limits.
+            Not part of the rig fingerprint: the limits change no simulation,
+            so evaluation stores stay valid when they are edited.
     """
 
     name: str
@@ -96,6 +101,7 @@ class CalibrationParameter:
     reference: float
     unit: str = ""
     description: str = ""
+    acceptable: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         where = f"CalibrationParameter {self.name!r}"
@@ -110,6 +116,42 @@ class CalibrationParameter:
             raise ValueError(
                 f"{where}.reference: got {self.reference}; must lie in [{self.lower}, {self.upper}]"
             )
+        if self.acceptable is not None:
+            object.__setattr__(self, "acceptable", self._checked_acceptable(where))
+
+    def _checked_acceptable(self, where: str) -> tuple[float, float]:
+        value = self.acceptable
+        unit = f" {self.unit}" if self.unit else ""
+        if (
+            isinstance(value, str | bytes) or not hasattr(value, "__len__") or len(value) != 2  # type: ignore[arg-type]
+        ):
+            raise ValueError(
+                f"{where}.acceptable: got {value!r}; expected [lo, hi] (two numbers{unit})"
+            )
+        lo, hi = (_number(f"{where}.acceptable", v) for v in value)  # type: ignore[union-attr]
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise ValueError(f"{where}.acceptable: got [{lo}, {hi}]; must be finite")
+        if not lo < hi:
+            raise ValueError(f"{where}.acceptable: got [{lo}, {hi}]{unit}; lo must be < hi")
+        if not self.lower < lo or not hi < self.upper:
+            raise ValueError(
+                f"{where}.acceptable: got [{lo}, {hi}]{unit}; must lie strictly inside the "
+                f"admissible interval ({self.lower}, {self.upper}){unit} — C_w must be wider "
+                "than the acceptable domain so that a posterior can leave it"
+            )
+        return (lo, hi)
+
+    def outside_acceptable(self, values: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Which ``values`` (any shape, physical unit) lie outside the acceptable domain.
+
+        Raises:
+            ValueError: the parameter has no acceptable domain.
+        """
+        if self.acceptable is None:
+            raise ValueError(f"CalibrationParameter {self.name!r}: no acceptable domain")
+        lo, hi = self.acceptable
+        values = np.asarray(values, dtype=np.float64)
+        return (values < lo) | (values > hi)
 
 
 @dataclass(frozen=True)
@@ -347,6 +389,8 @@ class RigSpec:
                 k: getattr(self.simulation, k) for k in self.simulation.__dataclass_fields__
             },
             "spectrum": spectrum_dict,
+            # ``acceptable`` (maintenance limits) is left out on purpose: it changes no
+            # simulation, so editing it must not invalidate evaluation stores.
             "calibration": [
                 {"name": c.name, "lower": c.lower, "upper": c.upper, "reference": c.reference}
                 for c in self.calibration
@@ -404,11 +448,10 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     spectrum = SpectrumSettings(**data.get("spectrum", {}))
     calibration = []
     for entry in data.get("calibration", {}).get("parameters", []):
-        # "acceptable" (maintenance limits) is allowed by the schema; parsed where supported
-        supported = CalibrationParameter.__dataclass_fields__
-        calibration.append(
-            CalibrationParameter(**{k: v for k, v in entry.items() if k in supported})
-        )
+        try:
+            calibration.append(CalibrationParameter(**entry))
+        except ValueError as error:
+            raise ValueError(f"{source}: [[calibration.parameters]] {error}") from None
         name = entry["name"]
         if name in parameters and not math.isclose(
             parameters[name], calibration[-1].reference, rel_tol=1e-12

@@ -1,0 +1,88 @@
+"""``susp-bo monitor``: every campaign of a monitoring folder calibrated, trends and alarms."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from susp_bo.cli import UsageError
+from susp_bo.commands._arguments import integer, number
+
+
+def add_parser(sub: Any) -> None:
+    """Register ``susp-bo monitor`` on the command line's sub-parsers."""
+    monitor = sub.add_parser(
+        "monitor",
+        help="calibrate every campaign (vehicle, date) of a folder, resumably; trends, "
+        "P(outside the acceptable domain), maintenance table",
+    )
+    monitor.add_argument("folder", help="monitoring folder: one sub-folder of runs per campaign")
+    monitor.add_argument("--out", required=True, help="results folder (monitor.json, figures)")
+    monitor.add_argument(
+        "--rig", help="rig name or path (default: monitor.toml's, else hst_trailer)"
+    )
+    monitor.add_argument(
+        "--parameters",
+        help="comma-separated subset of the rig's calibration set (default: all of it)",
+    )
+    monitor.add_argument("--budget", type=integer(2), help="likelihood evaluations per campaign")
+    group = monitor.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=integer(0), help="local worker processes")
+    group.add_argument("--scheduler", help="Dask scheduler address")
+    monitor.add_argument(
+        "--threshold",
+        type=number(0, strict=True),
+        default=0.9,
+        help="alarm when P(outside) exceeds it on a trusted calibration (default: %(default)s)",
+    )
+    monitor.set_defaults(handler=run_monitor)
+
+
+def run_monitor(args: argparse.Namespace) -> int:
+    """Run (or continue) the monitoring and print the maintenance table."""
+    from susp_bo.monitoring.runner import MonitorError, monitor
+
+    if not 0.0 < args.threshold < 1.0:
+        raise UsageError(f"--threshold: got {args.threshold}; expected a probability in (0, 1)")
+    parameters = None
+    if args.parameters is not None:
+        parameters = [p.strip() for p in args.parameters.split(",") if p.strip()]
+        if not parameters:
+            raise UsageError(f"--parameters: {args.parameters!r} names no parameter")
+    try:
+        payload = monitor(
+            args.folder,
+            args.out,
+            rig=args.rig,
+            parameters=parameters,
+            budget=args.budget,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            threshold=args.threshold,
+        )
+    except MonitorError as error:
+        raise UsageError(str(error)) from None
+    print(format_table(payload), file=sys.stderr)
+    return 0
+
+
+def format_table(payload: dict[str, Any]) -> str:
+    """The maintenance table and the campaigns not used for alarms, as plain text."""
+    lines = []
+    rows = payload["maintenance"]
+    if rows:
+        lines.append("maintenance:")
+        for row in rows:
+            lines.append(
+                f"  {row['vehicle']}: {row['parameter']} ({row['part']}) {row['direction']} "
+                f"its acceptable domain since {row['since_campaign']}, "
+                f"P = {row['probability']:.3f} "
+                f"(last trusted campaign {row['last_trusted_campaign']})"
+            )
+    else:
+        lines.append("maintenance: no alarm")
+    for campaign in payload["campaigns"]:
+        if not campaign["trusted"]:
+            lines.append(f"  {campaign['id']}: not used for alarms — {campaign['why']}")
+    return "\n".join(lines)

@@ -1,0 +1,11 @@
+"""Monitoring: campaigns over dates, acceptable domains, P(outside), maintenance alarms.
+
+- :mod:`~susp_bo.monitoring.campaigns` — campaign discovery (vehicle, date, line).
+- :mod:`~susp_bo.monitoring.alarms` — P(outside), the alarm rule, the maintenance table.
+- :mod:`~susp_bo.monitoring.runner` — :func:`monitor`: every campaign calibrated (resumable),
+  ``monitor.json``.
+- :mod:`~susp_bo.monitoring.figures` — trend figures.
+- :mod:`~susp_bo.monitoring.scenario` — a known-answer degradation scenario.
+"""
+
+from __future__ import annotations

@@ -1,0 +1,128 @@
+"""Trend figures of a monitoring run: one PNG per parameter, posterior against date.
+
+Per vehicle (one colour each): the posterior median (marker) and equal-tailed 95 %
+interval (bar) of every campaign against its date; the acceptable domain as a
+green band, the admissible interval C_w as dashed lines (the y-range), the nominal
+as a dotted line; campaigns in alarm ringed in red; campaigns whose calibration is
+not trusted drawn hollow (they never raise or clear an alarm); the truth as a black
+cross when the data are synthetic. Values in physical units with SI prefixes.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.dates as mdates
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+_PREFIXES = {-3: "m", 0: "", 3: "k", 6: "M", 9: "G"}
+
+
+def unit_scale(values: np.ndarray, unit: str) -> tuple[float, str]:
+    """(factor, label) so that ``values / factor`` reads in ``<prefix><unit>`` (engineering)."""
+    finite = np.abs(np.asarray(values, dtype=np.float64))
+    finite = finite[np.isfinite(finite) & (finite > 0)]
+    if finite.size == 0 or not unit:
+        return 1.0, unit
+    exponent = 3 * math.floor(math.log10(float(np.max(finite))) / 3)
+    exponent = min(max(exponent, -3), 9)
+    return 10.0**exponent, f"{_PREFIXES[exponent]}{unit}"
+
+
+def trend_figure(payload: Mapping[str, Any], name: str, path: Path) -> Path:
+    """The trend of one parameter over every campaign of ``payload`` (``monitor.json``)."""
+    k = list(payload["parameters"]).index(name)
+    unit = payload["units"][k]
+    lower, upper = payload["bounds"][k]
+    acceptable = payload["acceptable"][k]
+    factor, label = unit_scale(np.array([lower, upper]), unit)
+    fig, ax = plt.subplots(figsize=(8.0, 4.2), constrained_layout=True)
+    if acceptable is not None:
+        ax.axhspan(
+            acceptable[0] / factor, acceptable[1] / factor, color="tab:green", alpha=0.12, lw=0
+        )
+    for bound in (lower, upper):
+        ax.axhline(bound / factor, color="0.4", ls="--", lw=0.9)
+    ax.axhline(payload["nominal"][k] / factor, color="0.4", ls=":", lw=0.9)
+    vehicles = list(payload["vehicles"])
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    offsets = np.linspace(-0.15, 0.15, len(vehicles)) if len(vehicles) > 1 else [0.0]
+    handles: list[Any] = []
+    any_alarm = any_untrusted = any_truth = False
+    for v, vehicle in enumerate(vehicles):
+        colour = colours[v % len(colours)]
+        rows = [r for r in payload["campaigns"] if r["vehicle"] == vehicle]
+        dates = [dt.date.fromisoformat(r["date"]) for r in rows]
+        x = mdates.date2num(dates) + offsets[v] * _spacing(payload)
+        states = [r["parameters"][name] for r in rows]
+        median = np.array([s["median"] for s in states]) / factor
+        lo = np.array([s["interval95"][0] for s in states]) / factor
+        hi = np.array([s["interval95"][1] for s in states]) / factor
+        ax.errorbar(x, median, yerr=[median - lo, hi - median], fmt="none", ecolor=colour, lw=1.4)
+        ax.plot(x, median, "-", color=colour, lw=0.6, alpha=0.6)
+        trusted = np.array([r["trusted"] for r in rows], dtype=bool)
+        ax.plot(x[trusted], median[trusted], "o", color=colour, ms=5)
+        ax.plot(x[~trusted], median[~trusted], "o", mfc="white", mec=colour, ms=5)
+        any_untrusted |= bool(np.any(~trusted))
+        alarm = np.array([s["alarm"] for s in states], dtype=bool)
+        if np.any(alarm):
+            any_alarm = True
+            ax.plot(x[alarm], median[alarm], "o", mfc="none", mec="red", ms=11, mew=1.6)
+        truth = np.array([np.nan if s["truth"] is None else s["truth"] for s in states])
+        if np.any(np.isfinite(truth)):
+            any_truth = True
+            ax.plot(x, truth / factor, "x", color="black", ms=6)
+        handles.append(
+            Line2D([], [], color=colour, marker="o", lw=1.4, label=f"{vehicle}: median, 95 %")
+        )
+    if acceptable is not None:
+        handles.append(Patch(color="tab:green", alpha=0.25, label="acceptable domain"))
+    handles.append(Line2D([], [], color="0.4", ls="--", lw=0.9, label="admissible range $C_w$"))
+    handles.append(Line2D([], [], color="0.4", ls=":", lw=0.9, label="nominal"))
+    if any_alarm:
+        handles.append(
+            Line2D([], [], ls="none", marker="o", mfc="none", mec="red", ms=11, label="alarm")
+        )
+    if any_untrusted:
+        handles.append(
+            Line2D([], [], ls="none", marker="o", mfc="white", mec="0.3", label="not trusted")
+        )
+    if any_truth:
+        handles.append(Line2D([], [], ls="none", marker="x", color="black", label="truth"))
+    span = (upper - lower) / factor
+    ax.set_ylim(lower / factor - 0.04 * span, upper / factor + 0.04 * span)
+    ax.set_ylabel(f"{name} [{label}]")
+    ax.set_xlabel("campaign date")
+    ax.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m-%d"))
+    fig.autofmt_xdate()
+    ax.set_title(f"{name}: posterior per campaign", fontsize=10)
+    ax.legend(handles=handles, fontsize=7, loc="best", framealpha=0.85)
+    ax.grid(alpha=0.25)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _spacing(payload: Mapping[str, Any]) -> float:
+    """Median gap between campaign dates (days), for the vehicle offsets."""
+    dates = sorted({dt.date.fromisoformat(r["date"]) for r in payload["campaigns"]})
+    if len(dates) < 2:
+        return 1.0
+    return float(np.median(np.diff(mdates.date2num(dates))))
+
+
+def trend_figures(payload: Mapping[str, Any], out: Path) -> list[Path]:
+    """``trend_<parameter>.png`` for every calibrated parameter, in ``out``."""
+    return [
+        trend_figure(payload, name, out / f"trend_{name}.png") for name in payload["parameters"]
+    ]

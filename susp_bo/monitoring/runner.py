@@ -1,0 +1,331 @@
+"""``susp-bo monitor``: calibrate every campaign of a monitoring folder, then trends and alarms.
+
+Each campaign is one calibration study (:func:`susp_bo.calibration.study.run_study`)
+with its own results folder ``OUT/<vehicle>/<date>/`` (store, ``result.json``,
+``posterior_samples.npy``, figures, log). The run is resumable at the campaign
+level and inside a campaign:
+
+- a campaign whose folder holds ``result.json`` and ``posterior_samples.npy`` is
+  finished and never recomputed (its result is read back);
+- a campaign whose folder holds only an evaluation store was killed: it is
+  resumed from the store (``resume=True``: finished simulations are read back
+  bit for bit, the result equals that of an uninterrupted run);
+- a campaign added to the monitoring folder later is simply new work.
+
+Execution: campaigns run **in sequence**, each study's simulator runs in
+parallel on the process pool (``workers``) or the Dask cluster (``scheduler``).
+An EGO batch (``batch_size`` points × ν track stretches) already fills the
+workers, and the surrogate fit and the MCMC of a campaign are serial in the
+driver, so running campaigns side by side would only pay off with more
+workers than a batch needs; in sequence the result of each campaign is also
+final (and resumable) before the next starts.
+
+Settings common to every campaign come from an optional ``monitor.toml`` in
+the monitoring folder — the keys of a study config (``rig``, ``parameters``,
+``[budget]``, ``[seeds]``, ``[executor]``, ``[mcmc]``, ``[output_error]``)
+except ``data`` and ``out`` — overridden by the arguments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import tomllib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from susp_bo import __version__
+from susp_bo.calibration.study import (
+    RESULT_NAME,
+    SAMPLES_NAME,
+    STORE_NAME,
+    StudyError,
+    prepare_study,
+    run_study,
+)
+from susp_bo.json_files import json_ready, write_json
+from susp_bo.monitoring.alarms import (
+    ALARM_THRESHOLD,
+    CampaignRecord,
+    apply_alarms,
+    maintenance_table,
+    summarise_parameter,
+    trust,
+)
+from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
+from susp_bo.rig.spec import load_rig_spec
+from susp_bo.study_config import (
+    BudgetConfig,
+    ExecutorConfig,
+    StudyConfig,
+    parse_study_config,
+)
+
+MONITOR_CONFIG_NAME = "monitor.toml"
+MONITOR_NAME = "monitor.json"
+
+
+class MonitorError(ValueError):
+    """A monitoring run that cannot start: bad folder, settings or campaign."""
+
+
+def base_config(
+    folder: Path,
+    out: Path,
+    *,
+    rig: str | None = None,
+    parameters: Sequence[str] | None = None,
+    budget: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+) -> StudyConfig:
+    """The study config every campaign shares (``data``/``out`` set per campaign).
+
+    Raises:
+        MonitorError: a bad ``monitor.toml`` or argument.
+    """
+    path = folder / MONITOR_CONFIG_NAME
+    mapping: dict[str, Any] = {}
+    if path.is_file():
+        try:
+            mapping = tomllib.loads(path.read_text(encoding="utf-8"))
+        except tomllib.TOMLDecodeError as error:
+            raise MonitorError(f"{path}: not valid TOML ({error})") from None
+        for key in ("data", "out"):
+            if key in mapping:
+                raise MonitorError(
+                    f"{path}: {key}: not allowed here; campaigns are discovered in the "
+                    "monitoring folder and results go to --out"
+                )
+    mapping.setdefault("rig", "hst_trailer")
+    if rig is not None:
+        mapping["rig"] = str(rig)
+    if parameters is not None:
+        mapping["parameters"] = list(parameters)
+    where = f"{path}: " if path.is_file() else ""
+    try:
+        config = parse_study_config({**mapping, "data": ".", "out": str(out)}, folder)
+        if budget is not None:
+            config = dataclasses.replace(
+                config,
+                budget=BudgetConfig(
+                    max_evaluations=budget,
+                    initial_design=min(config.budget.initial_design, budget),
+                    batch_size=config.budget.batch_size,
+                    check_points=config.budget.check_points,
+                ),
+            )
+        if workers is not None or scheduler is not None:
+            config = dataclasses.replace(
+                config, executor=ExecutorConfig(workers=workers, scheduler=scheduler)
+            )
+    except (ValueError, TypeError) as error:
+        raise MonitorError(f"{where}{error}") from None
+    return config
+
+
+def campaign_config(base: StudyConfig, campaign: Campaign, out: Path) -> StudyConfig:
+    """The study config of one campaign: its runs in, ``out/<vehicle>/<date>`` out."""
+    return dataclasses.replace(base, data=campaign.folder, out=out / campaign.campaign_id)
+
+
+def campaign_status(folder: Path) -> str:
+    """``finished`` (result and draws written), ``interrupted`` (a store only) or ``new``."""
+    if (folder / RESULT_NAME).is_file() and (folder / SAMPLES_NAME).is_file():
+        return "finished"
+    if (folder / STORE_NAME).is_file():
+        return "interrupted"
+    return "new"
+
+
+def _say(progress: bool, text: str) -> None:
+    if progress:
+        print(f"susp-bo monitor: {text}", file=sys.stderr)
+
+
+def monitor(
+    folder: str | Path,
+    out: str | Path,
+    *,
+    rig: str | None = None,
+    parameters: Sequence[str] | None = None,
+    budget: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    threshold: float = ALARM_THRESHOLD,
+    figures: bool = True,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Calibrate every campaign in ``folder`` (resumably), then write ``monitor.json`` and figures.
+
+    Args:
+        folder: monitoring folder (campaign sub-folders, optional ``monitor.toml``).
+        out: results folder; ``out/<vehicle>/<date>/`` per campaign.
+        rig: rig name or path (default: ``monitor.toml``'s, else ``hst_trailer``).
+        parameters: calibrated subset of the rig's calibration set (default: all).
+        budget: likelihood evaluations per campaign.
+        workers: local worker processes for the simulator runs (0 = in-process).
+        scheduler: Dask scheduler address instead of workers.
+        threshold: alarm when P(outside) > threshold on a trusted calibration.
+        figures: write the trend figures.
+        progress: progress lines on stderr.
+
+    Returns:
+        The ``monitor.json`` payload.
+
+    Raises:
+        MonitorError: bad folder, settings or campaign data — before any simulation.
+    """
+    folder, out = Path(folder).resolve(), Path(out).resolve()
+    try:
+        campaigns = discover_campaigns(folder)
+    except CampaignError as error:
+        raise MonitorError(str(error)) from None
+    base = base_config(
+        folder,
+        out,
+        rig=rig,
+        parameters=parameters,
+        budget=budget,
+        workers=workers,
+        scheduler=scheduler,
+    )
+    try:
+        spec = load_rig_spec(base.rig)
+        names = base.check_parameters(spec.calibration_names)
+    except (FileNotFoundError, ValueError) as error:
+        raise MonitorError(f"rig/parameters: {error}") from None
+    configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
+    status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
+    for campaign in campaigns:  # every input checked before the first simulation
+        config = configs[campaign.campaign_id]
+        state = status[campaign.campaign_id]
+        try:
+            if state == "finished":
+                _check_finished(config, names)
+            else:
+                prepare_study(config, resume=state == "interrupted")
+        except StudyError as error:
+            raise MonitorError(
+                f"campaign {campaign.campaign_id} ({campaign.folder}): {error}"
+            ) from None
+    out.mkdir(parents=True, exist_ok=True)
+    _say(
+        progress,
+        f"{len(campaigns)} campaigns of {len({c.vehicle for c in campaigns})} vehicles: "
+        + ", ".join(
+            f"{s} {list(status.values()).count(s)}" for s in ("finished", "interrupted", "new")
+        ),
+    )
+    for campaign in campaigns:
+        cid = campaign.campaign_id
+        if status[cid] == "finished":
+            continue
+        _say(progress, f"calibrating {cid} ({status[cid]}, {campaign.n_runs} runs)")
+        try:
+            run_study(configs[cid], resume=status[cid] == "interrupted", progress=progress)
+        except StudyError as error:
+            raise MonitorError(f"campaign {cid}: {error}") from None
+    payload = build_report(campaigns, configs, status, spec, names, threshold)
+    write_json(out / MONITOR_NAME, payload)
+    if figures:
+        from susp_bo.monitoring.figures import trend_figures
+
+        paths = trend_figures(payload, out)
+        payload["figures"] = [p.name for p in paths]
+        write_json(out / MONITOR_NAME, payload)
+    _say(progress, f"wrote {out / MONITOR_NAME}")
+    return payload
+
+
+def _check_finished(config: StudyConfig, names: Sequence[str]) -> None:
+    import json
+
+    result = json.loads((config.out / RESULT_NAME).read_text())
+    if list(result.get("parameters", [])) != list(names):
+        raise StudyError(
+            f"{config.out / RESULT_NAME} was calibrated for parameters {result.get('parameters')}, "
+            f"this run asks for {list(names)}; use another --out or remove that folder"
+        )
+
+
+def build_report(
+    campaigns: Sequence[Campaign],
+    configs: dict[str, StudyConfig],
+    status: dict[str, str],
+    spec: Any,
+    names: Sequence[str],
+    threshold: float = ALARM_THRESHOLD,
+) -> dict[str, Any]:
+    """The ``monitor.json`` payload from the campaigns' result folders."""
+    import json
+
+    parameters = {c.name: c for c in spec.calibration if c.name in names}
+    acceptable = {name: parameters[name].acceptable for name in names}
+    records: list[CampaignRecord] = []
+    extra: dict[str, dict[str, Any]] = {}
+    for campaign in campaigns:
+        cid = campaign.campaign_id
+        folder = configs[cid].out
+        result = json.loads((folder / RESULT_NAME).read_text())
+        samples = np.load(folder / SAMPLES_NAME)
+        trusted, why = trust(result)
+        summaries = {
+            name: summarise_parameter(name, samples[:, k], acceptable[name])
+            for k, name in enumerate(result["parameters"])
+        }
+        records.append(
+            CampaignRecord(
+                cid,
+                campaign.vehicle,
+                campaign.date.isoformat(),
+                trusted,
+                why,
+                summaries,
+                campaign.truth,
+            )
+        )
+        extra[cid] = {
+            **campaign.to_dict(),
+            "result_folder": cid,
+            "status_before_this_run": status[cid],
+            "trusted": trusted,
+            "reliability": result.get("reliability"),
+            "why": why,
+            "n_simulations": result.get("n_simulations"),
+            "n_evaluations": result.get("n_evaluations"),
+            "n_draws": int(samples.shape[0]),
+        }
+    states = apply_alarms(records, acceptable, threshold)
+    rows = []
+    for record in records:
+        row = dict(extra[record.campaign_id])
+        row["parameters"] = {n: s.to_dict() for n, s in states[record.campaign_id].items()}
+        if not record.trusted:
+            row["alarm_note"] = f"not used for alarms: {record.why}"
+        rows.append(row)
+    descriptions = {name: parameters[name].description or name for name in names}
+    return json_ready(
+        {
+            "rig": spec.name,
+            "parameters": list(names),
+            "units": [parameters[name].unit for name in names],
+            "bounds": [[parameters[n].lower, parameters[n].upper] for n in names],
+            "nominal": [parameters[n].reference for n in names],
+            "acceptable": [None if acceptable[n] is None else list(acceptable[n]) for n in names],
+            "descriptions": [descriptions[n] for n in names],
+            "alarm_threshold": threshold,
+            "alarm_rule": (
+                f"alarm when P(outside the acceptable domain) > {threshold} on a trusted "
+                "calibration; a calibration that is not trusted never raises or clears an alarm"
+            ),
+            "vehicles": sorted({c.vehicle for c in campaigns}),
+            "campaigns": rows,
+            "maintenance": maintenance_table(records, states, descriptions),
+            "n_simulations": int(sum(r.get("n_simulations") or 0 for r in rows)),
+            "version": __version__,
+        }
+    )

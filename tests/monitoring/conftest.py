@@ -1,0 +1,80 @@
+"""Fixtures for the monitoring tests: a short reference rig and small synthetic campaigns."""
+
+from __future__ import annotations
+
+import datetime as dt
+import tomllib
+from pathlib import Path
+
+import pytest
+import tomli_w
+
+from susp_bo.monitoring.scenario import write_campaign
+from susp_bo.rig.catalog import rig_path
+from susp_bo.rig.spec import load_rig_spec
+
+PARAMETERS = ["secondary_vertical_damping", "yaw_damper_damping"]
+TRUTH = {"secondary_vertical_damping": 30.0e3, "yaw_damper_damping": 3.5e6}
+
+
+def fast_rig_document() -> dict:
+    """The reference rig with 8 s records after 1 s warm-up (4 s Welch segments)."""
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    document["rig"]["name"] = "hst_trailer_fast"
+    document["simulation"].update(duration_s=8.0, warm_up_s=1.0)
+    document["spectrum"].update(segment_s=4.0, f_min_hz=0.5, n_frequencies=32)
+    return document
+
+
+@pytest.fixture(scope="session")
+def monitor_rig(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("monitor_rig") / "hst_trailer_fast.toml"
+    path.write_text(tomli_w.dumps(fast_rig_document()))
+    return path
+
+
+def add_campaign(folder: Path, rig: Path, vehicle: str, date: str, seed: int) -> Path:
+    """Two synthetic runs of ``vehicle`` on ``date`` (truth :data:`TRUTH`) under ``folder``."""
+    return write_campaign(
+        load_rig_spec(rig),
+        folder / vehicle / date,
+        vehicle=vehicle,
+        date=dt.date.fromisoformat(date),
+        truth=TRUTH,
+        nu=2,
+        seed=seed,
+        noise_m_s2=0.005,
+    )
+
+
+def write_monitor_config(folder: Path, rig: Path) -> Path:
+    """``monitor.toml``: q = 2, 8 evaluations per campaign in batches of 2, short MCMC."""
+    path = folder / "monitor.toml"
+    path.write_text(
+        tomli_w.dumps(
+            {
+                "rig": str(rig),
+                "parameters": PARAMETERS,
+                "budget": {
+                    "max_evaluations": 8,
+                    "initial_design": 6,
+                    "batch_size": 2,
+                    "check_points": 2,
+                },
+                "mcmc": {"chains": 8, "draws": 300, "warmup": 200},
+            }
+        )
+    )
+    return path
+
+
+@pytest.fixture(scope="session")
+def campaign_adder():
+    """:func:`add_campaign`, as a fixture (test modules cannot import each other)."""
+    return add_campaign
+
+
+@pytest.fixture(scope="session")
+def monitor_config_writer():
+    """:func:`write_monitor_config`, as a fixture."""
+    return write_monitor_config

@@ -1,0 +1,108 @@
+"""P(outside) against exact answers, the trust contract and the alarm rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from susp_bo.monitoring.alarms import (
+    NO_VERDICT,
+    CampaignRecord,
+    apply_alarms,
+    maintenance_table,
+    p_outside,
+    summarise_parameter,
+    trust,
+)
+
+MU, SIGMA = 30.0e3, 1.5e3
+BAND = (28.0e3, 56.0e3)
+EXACT = norm.cdf(BAND[0], MU, SIGMA) + norm.sf(BAND[1], MU, SIGMA)
+
+
+def test_p_outside_of_gaussian_quantile_draws_is_the_normal_cdf_within_one_over_n() -> None:
+    n = 20_000
+    draws = norm.ppf((np.arange(n) + 0.5) / n, MU, SIGMA)  # exact quantiles of N(MU, SIGMA²)
+    assert abs(p_outside(draws, BAND) - EXACT) <= 1.0 / n
+    assert abs(EXACT - 0.0912) < 1e-4  # Φ(-4/3): the case has a known answer
+
+
+def test_p_outside_of_random_gaussian_draws_is_within_five_monte_carlo_errors() -> None:
+    n = 200_000
+    draws = np.random.default_rng(3).normal(MU, SIGMA, n)
+    error = np.sqrt(EXACT * (1 - EXACT) / n)
+    assert abs(p_outside(draws, BAND) - EXACT) < 5 * error
+
+
+def test_summary_gives_median_equal_tailed_interval_and_the_side_of_the_mass() -> None:
+    n = 40_000
+    draws = norm.ppf((np.arange(n) + 0.5) / n, 20.0e3, 1.0e3)
+    median, (lo, hi), p_out, side = summarise_parameter("d", draws, BAND)
+    assert median == pytest.approx(20.0e3, rel=1e-6)
+    assert lo == pytest.approx(20.0e3 - 1.959964e3, rel=1e-4)
+    assert hi == pytest.approx(20.0e3 + 1.959964e3, rel=1e-4)
+    assert p_out == pytest.approx(norm.cdf(28.0e3, 20.0e3, 1.0e3), abs=1 / n)
+    assert side == "below"
+    assert summarise_parameter("d", draws + 60.0e3, BAND)[3] == "above"
+    assert summarise_parameter("d", draws, None)[2:] == (None, None)
+
+
+def test_trust_follows_the_reliability_contract() -> None:
+    assert trust({}) == (False, NO_VERDICT)
+    assert trust({"reliability": {"verdict": "trusted", "reasons": [], "sentence": "ok"}}) == (
+        True,
+        "ok",
+    )
+    trusted, why = trust(
+        {"reliability": {"verdict": "not_trusted", "reasons": [{"code": "not_converged"}]}}
+    )
+    assert not trusted and "not_converged" in why
+
+
+def _record(day: int, p: float, trusted: bool, vehicle: str = "A") -> CampaignRecord:
+    return CampaignRecord(
+        f"{vehicle}/2026-01-{day:02d}",
+        vehicle,
+        f"2026-01-{day:02d}",
+        trusted,
+        "ok" if trusted else "not trusted (budget_too_small)",
+        {"damper": (1.0, (0.5, 1.5), p, "below")},
+    )
+
+
+def test_untrusted_campaigns_neither_raise_nor_clear_an_alarm() -> None:
+    records = [
+        _record(1, 0.10, True),
+        _record(2, 0.99, False),  # would raise: not trusted, ignored
+        _record(3, 0.95, True),  # raises
+        _record(4, 0.01, False),  # would clear: not trusted, ignored
+        _record(5, 0.97, True),
+        _record(6, 0.99, False),
+    ]
+    states = apply_alarms(records, {"damper": (0.0, 1.0)})
+    alarms = [states[r.campaign_id]["damper"].alarm for r in records]
+    used = [states[r.campaign_id]["damper"].used for r in records]
+    assert alarms == [False, False, True, True, True, True]
+    assert used == [True, False, True, False, True, False]
+    (row,) = maintenance_table(records, states, {"damper": "secondary vertical damper"})
+    assert row["since_campaign"] == "A/2026-01-03"
+    assert row["last_trusted_campaign"] == "A/2026-01-05"
+    assert row["probability"] == 0.97
+    assert row["part"] == "secondary vertical damper"
+    assert row["untrusted_since"] == ["A/2026-01-06"]
+
+
+def test_the_threshold_is_strict_and_alarms_clear_and_vehicles_are_independent() -> None:
+    records = [
+        _record(1, 0.9, True),  # exactly the threshold: no alarm
+        _record(2, 0.91, True),
+        _record(3, 0.2, True),  # trusted and inside: clears
+        _record(1, 0.95, True, vehicle="B"),
+    ]
+    states = apply_alarms(records, {"damper": (0.0, 1.0)})
+    assert [states[r.campaign_id]["damper"].alarm for r in records] == [False, True, False, True]
+    table = maintenance_table(records, states)
+    assert [(r["vehicle"], r["since_campaign"]) for r in table] == [("B", "B/2026-01-01")]
+    with pytest.raises(ValueError, match="threshold"):
+        apply_alarms(records, {"damper": (0.0, 1.0)}, threshold=1.0)

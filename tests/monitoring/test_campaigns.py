@@ -1,0 +1,125 @@
+"""Campaign discovery: vehicle, date and line from manifests or run metadata; clear errors."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from susp_bo.data.measured import MeasuredRun, save_run
+from susp_bo.monitoring.campaigns import CampaignError, discover_campaigns, read_campaign
+from susp_bo.rig.track import SpeedProfile, TrackGeometry
+
+
+def _run(seed: int, **metadata: object) -> MeasuredRun:
+    rng = np.random.default_rng(seed)
+    return MeasuredRun(
+        geometry=TrackGeometry.synthetic("low", length_m=100.0, seed=seed),
+        speed=SpeedProfile.constant(20.0, 4.0),
+        channels=("a", "b"),
+        accelerations_m_s2=rng.normal(0.0, 0.3, size=(2, 400)),
+        sample_rate_hz=100.0,
+        units=("m/s^2", "m/s^2"),
+        metadata=dict(metadata),
+    )
+
+
+def _campaign(folder: Path, *metadata: dict, manifest: str | None = None) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    for index, meta in enumerate(metadata):
+        save_run(_run(index, **meta), folder / f"run_{index:03d}.h5")
+    if manifest is not None:
+        (folder / "campaign.toml").write_text(manifest)
+    return folder
+
+
+def test_campaigns_from_metadata_and_manifests_sorted_by_vehicle_then_date(tmp_path: Path) -> None:
+    meta = {"vehicle": "B-7", "date": "2026-03-01", "line": "L1", "truth": {"x": 1.0}}
+    _campaign(tmp_path / "b" / "march", meta, meta)
+    _campaign(tmp_path / "a_feb", {}, manifest='vehicle = "A 1"\ndate = 2026-02-01\n')
+    _campaign(tmp_path / "a_jan", {}, manifest='vehicle = "A 1"\ndate = "2026-01-10"\n')
+    campaigns = discover_campaigns(tmp_path)
+    assert [(c.vehicle, c.date) for c in campaigns] == [
+        ("A 1", dt.date(2026, 1, 10)),
+        ("A 1", dt.date(2026, 2, 1)),
+        ("B-7", dt.date(2026, 3, 1)),
+    ]
+    assert campaigns[0].campaign_id == "A_1/2026-01-10"
+    assert campaigns[2].line == "L1" and campaigns[2].n_runs == 2
+    assert campaigns[2].truth == {"x": 1.0}
+    assert campaigns[0].truth is None
+
+
+def test_missing_date_names_the_folder_and_the_fix(tmp_path: Path) -> None:
+    folder = _campaign(tmp_path / "c", {"vehicle": "A"})
+    with pytest.raises(CampaignError, match=r"no date for this campaign; give it in") as caught:
+        read_campaign(folder)
+    assert str(folder) in str(caught.value) and "campaign.toml" in str(caught.value)
+
+
+def test_missing_vehicle_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(CampaignError, match="no vehicle"):
+        read_campaign(_campaign(tmp_path / "c", {"date": "2026-01-01"}))
+
+
+def test_mixed_vehicles_in_one_campaign_are_refused(tmp_path: Path) -> None:
+    folder = _campaign(
+        tmp_path / "c",
+        {"vehicle": "A", "date": "2026-01-01"},
+        {"vehicle": "B", "date": "2026-01-01"},
+    )
+    with pytest.raises(CampaignError, match=r"runs of different vehicles in one campaign.*A.*B"):
+        read_campaign(folder)
+
+
+def test_mixed_dates_and_partial_metadata_are_refused(tmp_path: Path) -> None:
+    mixed = _campaign(
+        tmp_path / "m",
+        {"vehicle": "A", "date": "2026-01-01"},
+        {"vehicle": "A", "date": "2026-01-02"},
+    )
+    with pytest.raises(CampaignError, match="different dates"):
+        read_campaign(mixed)
+    partial = _campaign(tmp_path / "p", {"vehicle": "A", "date": "2026-01-01"}, {"vehicle": "A"})
+    with pytest.raises(CampaignError, match=r"run_001.h5'\] have no 'date'"):
+        read_campaign(partial)
+
+
+def test_a_manifest_that_contradicts_the_runs_is_refused(tmp_path: Path) -> None:
+    folder = _campaign(
+        tmp_path / "c",
+        {"vehicle": "A", "date": "2026-01-01"},
+        manifest='vehicle = "A"\ndate = 2026-01-02\n',
+    )
+    with pytest.raises(CampaignError, match=r"date = .*contradicts the runs"):
+        read_campaign(folder)
+    (folder / "campaign.toml").write_text('vehicle = "A"\ndate = 2026-01-01\nspeed = 3\n')
+    with pytest.raises(CampaignError, match=r"unknown keys \['speed'\]"):
+        read_campaign(folder)
+    (folder / "campaign.toml").write_text('vehicle = "A"\ndate = "yesterday"\n')
+    with pytest.raises(CampaignError, match=r"'yesterday' is not a date; expected YYYY-MM-DD"):
+        read_campaign(folder)
+
+
+def test_two_campaigns_of_one_vehicle_on_one_date_are_refused(tmp_path: Path) -> None:
+    meta = {"vehicle": "A", "date": "2026-01-01"}
+    _campaign(tmp_path / "one", meta)
+    _campaign(tmp_path / "two", meta)
+    with pytest.raises(CampaignError, match=r"two campaigns of vehicle 'A' on 2026-01-01"):
+        discover_campaigns(tmp_path)
+
+
+def test_an_empty_folder_holds_no_campaign(tmp_path: Path) -> None:
+    with pytest.raises(CampaignError, match="holds no campaign"):
+        discover_campaigns(tmp_path)
+    with pytest.raises(CampaignError, match="not a folder"):
+        discover_campaigns(tmp_path / "missing")
+
+
+def test_replace_keeps_campaign_frozen(tmp_path: Path) -> None:
+    campaign = read_campaign(_campaign(tmp_path / "c", {"vehicle": "A", "date": "2026-01-01"}))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        campaign.vehicle = "B"  # type: ignore[misc]
