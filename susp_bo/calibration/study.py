@@ -13,7 +13,13 @@ against the rig's channels and band, the output folder and its store), then:
    without knowing the track exactly), or fixed in the config;
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
    simulator evaluation going through the evaluation store and the executor;
-4. ``result.json``, the config used, the figures and the log are written.
+4. ``result.json``, the config used, the figures and the log are written, with
+   the reliability verdict (:mod:`susp_bo.calibration.reliability`) in
+   ``result.json["reliability"]``, at the end of the log and on stderr.
+
+A budget below what the q parameters need (:func:`check_budget`) is refused before
+any simulation unless ``budget.allow_small`` (``--allow-small-budget``) is set; then
+the study runs and its verdict is ``not_trusted`` with ``budget_too_small``.
 
 A study killed at any point is resumed with ``resume=True``: the store returns
 finished evaluations bit-for-bit and the loop is deterministic, so the result
@@ -43,6 +49,7 @@ from susp_bo.calibration.loop import (
     IterationReport,
     calibrate,
 )
+from susp_bo.calibration.reliability import budget_message, budget_requirement
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
@@ -148,6 +155,25 @@ def _sensor_noise(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> float:
     return recorded.pop()
 
 
+def check_budget(config: StudyConfig, q: int) -> None:
+    """Refuses a budget below the minimum for q parameters, unless ``budget.allow_small``.
+
+    Raises:
+        StudyError: naming ``--budget`` (``budget.max_evaluations``), the value and the
+            minimum (:func:`susp_bo.calibration.reliability.budget_requirement`).
+    """
+    budget = config.budget
+    requirement = budget_requirement(
+        q, budget.initial_design, budget.batch_size, budget.check_points
+    )
+    if budget.max_evaluations < requirement.minimum and not budget.allow_small:
+        raise StudyError(
+            budget_message(budget.max_evaluations, requirement, "--budget (budget.max_evaluations)")
+            + "; or pass --allow-small-budget ([budget] allow_small = true) to run anyway:"
+            " the result is then marked not trusted"
+        )
+
+
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     """Check every input of a study and load its data (no simulation).
 
@@ -159,6 +185,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         names = config.check_parameters(spec.calibration_names)
     except (FileNotFoundError, ValueError) as error:
         raise StudyError(str(error)) from error
+    check_budget(config, len(names))
     store_path = config.out / STORE_NAME
     if store_path.exists() and not resume:
         raise StudyError(
@@ -250,7 +277,17 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         mcmc_chains=config.mcmc.chains,
         mcmc_warmup=config.mcmc.warmup,
         mcmc_samples=config.mcmc.draws,
+        allow_small_budget=config.budget.allow_small,
     )
+
+
+def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float] | None:
+    """(mean, sd) of log L at the reference parameters under the output-error model.
+
+    None until the output-error model provides it (then the verdict also checks the best
+    log L against it); always None without a reference (measured data).
+    """
+    return None
 
 
 def _logger(out: Path) -> logging.Logger:
@@ -289,6 +326,7 @@ def result_payload(
         "best_log_likelihood": float(np.nanmax(result.y)),
         "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **result.mcmc},
         "surrogate_check": None if result.check is None else result.check.to_dict(result.bounds),
+        "reliability": None if result.reliability is None else result.reliability.to_dict(),
         "reference": None if study.reference is None else study.reference.tolist(),
         "output_error": {
             "channels": list(study.spec.channels),
@@ -362,6 +400,7 @@ def run_study(
             calibration_settings(config),
             progress=progress,
             on_iteration=report,
+            expected_at_truth=expected_log_likelihood_at_truth(study),
         )
         n_simulations = store.count()
     if result.check is not None:
@@ -381,6 +420,8 @@ def run_study(
     write_json(out / RESULT_NAME, payload)
     write_figures(study, result, out)
     log.info("result written: %s", out / RESULT_NAME)
+    if result.reliability is not None:  # the commands print it last, under their summary
+        log.info("reliability: %s", result.reliability.sentence)
     return payload, result
 
 

@@ -54,7 +54,12 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
                     initial_design=min(budget.initial_design, args.budget),
                     batch_size=budget.batch_size,
                     check_points=budget.check_points,
+                    allow_small=budget.allow_small,
                 ),
+            )
+        if getattr(args, "allow_small_budget", False):
+            config = dataclasses.replace(
+                config, budget=dataclasses.replace(config.budget, allow_small=True)
             )
         if args.workers is not None or args.scheduler is not None:
             config = dataclasses.replace(
@@ -83,13 +88,17 @@ def run_calibrate(args: argparse.Namespace) -> int:
         payload, _ = run_study(config, resume=args.resume)
     except StudyError as error:
         raise UsageError(str(error)) from error
-    print(format_summary(payload), file=sys.stderr)
     print(f"susp-bo calibrate: results in {config.out}", file=sys.stderr)
+    print(format_summary(payload), file=sys.stderr)
     return 0
 
 
 def format_summary(payload: dict) -> str:
-    """A plain-text table of the posterior (what a maintenance engineer reads first)."""
+    """A plain-text table of the posterior (what a maintenance engineer reads first).
+
+    Its last line is the reliability sentence (``payload["reliability"]["sentence"]``), or
+    says that the result has no verdict (a result.json from an older version).
+    """
     lines = [f"{'parameter':34s} {'marginal MAP':>13s} {'95 % interval':>27s} {'reference':>11s}"]
     reference = payload.get("reference")
     for k, name in enumerate(payload["parameters"]):
@@ -101,5 +110,10 @@ def format_summary(payload: dict) -> str:
     lines.append(
         f"simulator runs: {payload['n_simulations']}, likelihood evaluations: "
         f"{payload['n_evaluations']}, wall time {payload['wall_time_s']:.0f} s"
+    )
+    reliability = payload.get("reliability") or {}
+    lines.append(
+        reliability.get("sentence")
+        or "Not trusted: no reliability verdict (a result from an older version)."
     )
     return "\n".join(lines)
