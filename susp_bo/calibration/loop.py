@@ -347,9 +347,11 @@ def calibrate(
         q, settings.initial_design_size, settings.batch_size, settings.check_points
     )
     if budget < requirement.minimum:
-        message = budget_message(budget, requirement, "max_evaluations")
+        message = budget_message(
+            budget, requirement, "max_evaluations", "set allow_small_budget=True"
+        )
         if not settings.allow_small_budget:
-            raise BudgetTooSmallError(f"{message} (or set allow_small_budget=True)")
+            raise BudgetTooSmallError(message)
         logger.warning(
             "%s; running anyway (allow_small_budget): the result is not trusted", message
         )

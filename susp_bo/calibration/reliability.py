@@ -178,12 +178,17 @@ def budget_requirement(
     return BudgetRequirement(int(q), design, int(batch_size), int(check_points))
 
 
-def budget_message(budget: int, requirement: BudgetRequirement, flag: str = "budget") -> str:
-    """The refusal message: names ``flag``, the value and the minimum."""
+def budget_message(
+    budget: int,
+    requirement: BudgetRequirement,
+    flag: str = "--budget",
+    override: str = "pass --allow-small-budget",
+) -> str:
+    """The refusal message: names ``flag``, the value, the minimum and the override."""
     return (
-        f"{flag}: {budget} evaluations is below the minimum {requirement.describe()}: it "
-        f"leaves no room to refine the search and check the surrogate; give {flag} "
-        f">= {requirement.minimum}"
+        f"{flag} {budget} is below the minimum {requirement.describe()}: no room to refine "
+        f"the search and check the surrogate; give {flag} {requirement.minimum} or more, or "
+        f"{override} to run anyway (the result is then marked not trusted)"
     )
 
 

@@ -168,9 +168,12 @@ def check_budget(config: StudyConfig, q: int) -> None:
     )
     if budget.max_evaluations < requirement.minimum and not budget.allow_small:
         raise StudyError(
-            budget_message(budget.max_evaluations, requirement, "--budget (budget.max_evaluations)")
-            + "; or pass --allow-small-budget ([budget] allow_small = true) to run anyway:"
-            " the result is then marked not trusted"
+            budget_message(
+                budget.max_evaluations,
+                requirement,
+                "budget.max_evaluations (--budget)",
+                "set [budget] allow_small = true (--allow-small-budget)",
+            )
         )
 
 

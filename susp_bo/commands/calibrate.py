@@ -45,8 +45,11 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
             config = parse_study_config(
                 {"rig": args.rig_or_study, "data": args.data_dir, "out": args.out}, Path.cwd()
             )
+        allow_small = config.budget.allow_small or getattr(args, "allow_small_budget", False)
         if args.budget is not None:
             budget = config.budget
+            if not allow_small:
+                _refuse_small_budget(config, args.budget)
             config = dataclasses.replace(
                 config,
                 budget=BudgetConfig(
@@ -54,10 +57,10 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
                     initial_design=min(budget.initial_design, args.budget),
                     batch_size=budget.batch_size,
                     check_points=budget.check_points,
-                    allow_small=budget.allow_small,
+                    allow_small=allow_small,
                 ),
             )
-        if getattr(args, "allow_small_budget", False):
+        elif allow_small:
             config = dataclasses.replace(
                 config, budget=dataclasses.replace(config.budget, allow_small=True)
             )
@@ -68,6 +71,25 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
     except ValueError as error:
         raise UsageError(str(error)) from error
     return config
+
+
+def _refuse_small_budget(config: StudyConfig, budget: int) -> None:
+    """``--budget`` below the minimum for the study's q parameters, before the design shrinks.
+
+    Raises:
+        UsageError: naming --budget, the value and the minimum.
+    """
+    from susp_bo.calibration.reliability import budget_message, budget_requirement
+    from susp_bo.rig.spec import load_rig_spec
+
+    try:
+        q = len(config.check_parameters(load_rig_spec(config.rig).calibration_names))
+    except (FileNotFoundError, ValueError):
+        return  # the study's own checks report a bad rig or parameter list
+    b = config.budget
+    requirement = budget_requirement(q, b.initial_design, b.batch_size, b.check_points)
+    if budget < requirement.minimum:
+        raise UsageError(budget_message(budget, requirement))
 
 
 def _is_study(path: Path) -> bool:
