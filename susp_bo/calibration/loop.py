@@ -326,9 +326,9 @@ def calibrate(
         settings: calibration settings (defaults if None).
         progress: show a tqdm bar of evaluations on stderr.
         on_iteration: called with an :class:`IterationReport` after every batch.
-        expected_at_truth: (mean, sd) of log L at the true parameters under the output-error
-            model, when known (synthetic data); the verdict then also checks the best log L
-            against it.
+        expected_at_truth: (mean, sd) of log L at the true parameters expected under the
+            output-error model (needs the model, not the truth), when it provides one; the
+            verdict then also checks the best log L against it.
 
     Returns:
         The :class:`CalibrationResult` (with its reliability verdict).

@@ -285,10 +285,12 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
 
 
 def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float] | None:
-    """(mean, sd) of log L at the reference parameters under the output-error model.
+    """(mean, sd) of log L at the true parameters expected under the output-error model B.
 
-    None until the output-error model provides it (then the verdict also checks the best
-    log L against it); always None without a reference (measured data).
+    At the truth the residuals y_i − h(x_i, w) are draws of B, so this expectation needs
+    B only, not the truth itself: it applies to measured data too. None until the
+    output-error model provides it (wire it here); the verdict then also checks the best
+    log L against it (``not_converged``).
     """
     return None
 
