@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from susp_bo.cli import main
+
 pytestmark = pytest.mark.slow
 
 
@@ -34,14 +36,17 @@ def _calibrate(rig: Path, data: Path, out: Path, *extra: str) -> subprocess.Comp
 
 
 def test_budget_40_on_seven_parameters_is_refused_naming_the_minimum(
-    fast_rig: Path, fast_data: Path, tmp_path: Path
+    fast_rig: Path, fast_data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    for budget in ("40", "3"):
-        done = _calibrate(fast_rig, fast_data, tmp_path / "out", "--budget", budget)
-        assert done.returncode == 2, done.stderr[-2000:]
-        assert f"--budget {budget} is below the minimum 56 for q = 7" in done.stderr
-        assert "--allow-small-budget" in done.stderr and "Traceback" not in done.stderr
-        assert not (tmp_path / "out" / "evaluations.sqlite").exists()  # nothing simulated
+    for budget in ("40", "3", "50"):
+        out = tmp_path / "out"
+        args = ["calibrate", str(fast_rig), str(fast_data), "--out", str(out), "--budget", budget]
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert f"--budget {budget} is below the minimum 51 for q = 7 parameters" in err
+        assert "a design of 35 + one refinement batch of 8 + 8 check points" in err
+        assert "--allow-small-budget" in err and "Traceback" not in err
+        assert not out.exists()  # refused before anything was written or simulated
 
 
 def test_a_small_budget_run_on_request_is_not_trusted(
@@ -49,7 +54,7 @@ def test_a_small_budget_run_on_request_is_not_trusted(
 ) -> None:
     out = tmp_path / "out"
     done = _calibrate(
-        fast_rig, fast_data, out, "--budget", "20", "--allow-small-budget", "--workers", "2"
+        fast_rig, fast_data, out, "--budget", "12", "--allow-small-budget", "--workers", "2"
     )
     assert done.returncode == 0, done.stderr[-3000:]
     payload = json.loads((out / "result.json").read_text())
@@ -57,8 +62,8 @@ def test_a_small_budget_run_on_request_is_not_trusted(
     assert reliability["verdict"] == "not_trusted"
     codes = [r["code"] for r in reliability["reasons"]]
     assert codes[0] == "budget_too_small" and "not_converged" in codes
-    assert "surrogate_unchecked" in codes  # 20 evaluations: all design, no check
+    assert "surrogate_unchecked" in codes  # 12 evaluations: all design, no check
     # the sentence is the last line on stderr and in the log
     assert done.stderr.strip().splitlines()[-1] == reliability["sentence"]
-    assert reliability["sentence"].startswith("Not trusted: the budget of 20 evaluations")
+    assert reliability["sentence"].startswith("Not trusted: the budget of 12 evaluations")
     assert reliability["sentence"] in (out / "study.log").read_text()
