@@ -347,13 +347,15 @@ def calibrate(
         q, settings.initial_design_size, settings.batch_size, settings.check_points
     )
     if budget < requirement.minimum:
-        message = budget_message(
-            budget, requirement, "max_evaluations", "set allow_small_budget=True"
-        )
         if not settings.allow_small_budget:
-            raise BudgetTooSmallError(message)
+            raise BudgetTooSmallError(
+                budget_message(budget, requirement, "max_evaluations", "set allow_small_budget")
+            )
         logger.warning(
-            "%s; running anyway (allow_small_budget): the result is not trusted", message
+            "budget of %d evaluations below the minimum %s: running anyway on request; the "
+            "result will not be trusted",
+            budget,
+            requirement.describe(),
         )
     n0 = min(settings.initial_design_size or default_design_size(q), budget)
     n_check = min(settings.check_points, budget - n0)

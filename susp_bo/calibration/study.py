@@ -15,7 +15,8 @@ against the rig's channels and band, the output folder and its store), then:
    simulator evaluation going through the evaluation store and the executor;
 4. ``result.json``, the config used, the figures and the log are written, with
    the reliability verdict (:mod:`susp_bo.calibration.reliability`) in
-   ``result.json["reliability"]``, at the end of the log and on stderr.
+   ``result.json["reliability"]`` and at the end of the log (the commands print its
+   sentence last).
 
 A budget below what the q parameters need (:func:`check_budget`) is refused before
 any simulation unless ``budget.allow_small`` (``--allow-small-budget``) is set; then
