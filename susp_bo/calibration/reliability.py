@@ -324,8 +324,16 @@ def at_bound(
 # -- surrogate and sampler --------------------------------------------------------------------
 
 
-def surrogate_misfit(check: SurrogateCheck | None) -> Reason | None:
-    """``surrogate_misfit`` (check outside its band) or ``surrogate_unchecked`` (no check)."""
+def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> Reason | None:
+    """``surrogate_misfit`` (check outside its band) or ``surrogate_unchecked`` (no check).
+
+    Args:
+        check: the held-out check, None when none ran.
+        gross_nats: an error beyond this (nats) is called gross in the message: the point
+            lies outside the posterior's region altogether (a 95 % edge in 7-D sits about
+            7 nats below the maximum), so the surrogate posterior is misplaced rather than
+            merely too wide or too narrow.
+    """
     if check is None:
         return {
             "code": "surrogate_unchecked",
@@ -349,12 +357,19 @@ def surrogate_misfit(check: SurrogateCheck | None) -> Reason | None:
         parts.append(
             f"{int(below.sum())} below (down to {float(np.min(e[below])):.1f} nats: narrower there)"
         )
+    gross = ""
+    if float(np.max(np.abs(e[check.outside]))) > gross_nats:
+        gross = (
+            f"; errors beyond {gross_nats:g} nats mean the surrogate posterior is misplaced or "
+            "grossly misshapen, not only too wide or too narrow"
+        )
     return {
         "code": "surrogate_misfit",
         "message": (
             f"the held-out check found {int(check.outside.sum())} of {len(e)} posterior-edge "
             f"points outside the surrogate's predictive band, {check.verdict}: "
             + " and ".join(parts)
+            + gross
         ),
         "direction": check.verdict,
         "n_above": int(above.sum()),

@@ -114,6 +114,10 @@ def test_check_direction_matches_the_signs() -> None:
     assert _check([2.5], sd=1.0).verdict == "ok"
     assert _check([2.5], sd=0.1, noise=1.0).verdict == "ok"
     assert _check([1.2], sd=0.01).verdict == "overconfident"
+    assert "misplaced" not in reason["message"]
+    gross = surrogate_misfit(_check([-163.0, -40.0]))
+    assert gross is not None and gross["direction"] == "underconfident"
+    assert "misplaced" in gross["message"]
     assert surrogate_misfit(_check([0.5, -0.5])) is None
     unchecked = surrogate_misfit(None)
     assert unchecked is not None and unchecked["code"] == "surrogate_unchecked"
