@@ -491,7 +491,7 @@ def assess(
         "optimum_gap_nats": float(predicted_max - best_log_likelihood),
         "stop_reason": stop_reason,
         "last_phase": last_phase,
-        "last_criterion": float(last_criterion),
+        "last_criterion": float(last_criterion) if math.isfinite(last_criterion) else None,
         "expected_at_truth": None if expected_at_truth is None else list(expected_at_truth),
         "check_verdict": None if check is None else check.verdict,
         "check_points": 0 if check is None else len(check.observed),
