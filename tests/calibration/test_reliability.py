@@ -108,6 +108,13 @@ def test_check_direction_matches_the_signs() -> None:
     reason = surrogate_misfit(issue)
     assert reason is not None and (reason["n_above"], reason["n_below"]) == (2, 1)
     assert reason["direction"] == "mixed"
+    # the issue's demo check itself (errors and GP sd in nats): no point beyond 3 sd, but
+    # jointly far off (Σ z² 28.5, p 4e-4): the points beyond 1.58 sd go both ways
+    errors = np.array([-0.98, 0.05, -1.96, -2.3, 1.81, 1.87, -2.04, 1.33])
+    sd = np.array([0.66, 1.0, 1.01, 0.94, 0.6, 0.9, 1.49, 1.14])
+    demo = SurrogateCheck(np.zeros((8, 1)), np.zeros(8), sd, errors, 1.0)
+    assert demo.joint_p_value < 1e-3 and demo.verdict == "mixed"
+    assert demo.outside.tolist() == [False, False, True, True, True, True, False, False]
     assert _check([1.5, 2.0, 0.1]).verdict == "overconfident"  # observed above: wider
     assert _check([-1.5, -2.0, 0.1]).verdict == "underconfident"  # observed below: narrower
     # the GP's sd and the observation noise widen the band (z = 3), the 1-nat floor stays
