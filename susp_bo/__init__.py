@@ -20,8 +20,8 @@ Measured data
 Calibration
     :class:`OutputError`, :func:`log_likelihood`, :func:`estimate_output_error`,
     :class:`CalibrationSettings`, :func:`calibrate`, :class:`CalibrationResult`,
-    :class:`PosteriorSummary`, :class:`StudyConfig`, :func:`load_study_config`,
-    :func:`run_study`.
+    :class:`PosteriorSummary`, :class:`Reliability` (the verdict on a result),
+    :class:`StudyConfig`, :func:`load_study_config`, :func:`run_study`.
 Monitoring
     :func:`monitor` (every campaign of a folder calibrated; trends, P(outside), alarms).
 Infrastructure
@@ -64,6 +64,7 @@ _EXPORTS: dict[str, str] = {
     "CalibrationResult": "susp_bo.calibration.loop",
     "calibrate": "susp_bo.calibration.loop",
     "PosteriorSummary": "susp_bo.calibration.posterior",
+    "Reliability": "susp_bo.calibration.reliability",
     "StudyConfig": "susp_bo.study_config",
     "load_study_config": "susp_bo.study_config",
     "run_study": "susp_bo.calibration.study",
@@ -83,6 +84,7 @@ __all__ = [
     "MeasuredRun",
     "OutputError",
     "PosteriorSummary",
+    "Reliability",
     "Rig",
     "RigResponse",
     "RigSpec",
@@ -116,6 +118,7 @@ if TYPE_CHECKING:  # pragma: no cover - static names for type checkers and IDEs
     from susp_bo.calibration.likelihood import OutputError, estimate_output_error, log_likelihood
     from susp_bo.calibration.loop import CalibrationResult, calibrate
     from susp_bo.calibration.posterior import PosteriorSummary
+    from susp_bo.calibration.reliability import Reliability
     from susp_bo.calibration.settings import CalibrationSettings
     from susp_bo.calibration.study import run_study
     from susp_bo.data.measured import MeasuredDataError, MeasuredRun, load_run, load_runs, save_run

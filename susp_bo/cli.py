@@ -124,6 +124,12 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate.add_argument(
         "--resume", action="store_true", help="reuse the study's evaluation store"
     )
+    calibrate.add_argument(
+        "--allow-small-budget",
+        action="store_true",
+        help="run a budget below the minimum for the number of parameters (refused "
+        "otherwise); the result is then marked not trusted",
+    )
     calibrate.set_defaults(handler=_calibrate)
 
     imports = sub.add_parser(

@@ -83,6 +83,8 @@ class BudgetConfig:
         batch_size: EGO points proposed per batch (fill the workers).
         check_points: evaluations kept from the end of ``max_evaluations`` for the
             held-out check of the surrogate posterior at its 95 % edges (0 = none).
+        allow_small: run a budget below the minimum for q parameters
+            (``--allow-small-budget``); the result is then marked not trusted.
     """
 
     section: ClassVar[str] = "budget"
@@ -90,8 +92,13 @@ class BudgetConfig:
     initial_design: int = 40
     batch_size: int = 8
     check_points: int = 8
+    allow_small: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.allow_small, bool):
+            raise ValueError(
+                f"budget.allow_small: {self.allow_small!r} is not allowed; expected true or false"
+            )
         _integer("budget.initial_design", self.initial_design, 2)
         _integer("budget.max_evaluations", self.max_evaluations, 2)
         _integer("budget.batch_size", self.batch_size, 1)

@@ -11,6 +11,11 @@
    both within the budget ``max_evaluations``;
 4. MH sampling of the surrogate posterior and summaries (:mod:`.mcmc`, :mod:`.posterior`).
 
+Before the first evaluation the budget is checked against what q needs
+(:func:`.reliability.budget_requirement`); a smaller one raises
+:class:`BudgetTooSmallError` unless ``settings.allow_small_budget``. After the MCMC
+the result gets its reliability verdict (:func:`.reliability.assess`).
+
 Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
 for the surrogate they are imputed with the lowest finite log L observed so far
 (recomputed at every refit), which steers the search away from them without
@@ -45,13 +50,23 @@ from susp_bo.calibration.design import (
     to_unit,
 )
 from susp_bo.calibration.posterior import PosteriorSummary, summarize
+from susp_bo.calibration.reliability import (
+    Reliability,
+    assess,
+    budget_message,
+    budget_requirement,
+)
 from susp_bo.calibration.sampling import (
     sample_surrogate_posterior,
     surrogate_log_likelihood,
 )
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate, fit_surrogate
-from susp_bo.calibration.surrogate_check import SurrogateCheck, edge_points
+from susp_bo.calibration.surrogate_check import (
+    SurrogateCheck,
+    edge_points,
+    observation_noise_sd,
+)
 from susp_bo.progress import progress_bar
 
 logger = logging.getLogger(__name__)
@@ -102,6 +117,7 @@ class CalibrationResult:
         mcmc: kernel diagnostics of the final run (acceptance rate, scale).
         check: the held-out check of the surrogate posterior (None when
             ``check_points`` is 0 or no budget was left for it).
+        reliability: the verdict on this result (:mod:`.reliability`).
     """
 
     names: tuple[str, ...]
@@ -116,6 +132,7 @@ class CalibrationResult:
     history: tuple[IterationReport, ...]
     mcmc: dict[str, float]
     check: SurrogateCheck | None = None
+    reliability: Reliability | None = None
 
     @property
     def samples(self) -> np.ndarray:
@@ -132,6 +149,7 @@ class CalibrationResult:
             stop_reason=self.stop_reason,
             mcmc=dict(self.mcmc),
             surrogate_check=None if self.check is None else self.check.to_dict(self.bounds),
+            reliability=None if self.reliability is None else self.reliability.to_dict(),
         )
         return out
 
@@ -270,10 +288,14 @@ def _propose(
     return _Step("refine", u, criterion, "")
 
 
+class BudgetTooSmallError(ValueError):
+    """The budget leaves no room for refinement and the check (raised before any evaluation)."""
+
+
 def _propose_check(
     x: np.ndarray, y: np.ndarray, bounds: np.ndarray, size: int, settings: CalibrationSettings
-) -> tuple[torch.Tensor, np.ndarray, np.ndarray]:
-    """Edge points of the current surrogate posterior and the surrogate's predictions there."""
+) -> tuple[torch.Tensor, np.ndarray, np.ndarray, np.ndarray]:
+    """Edge points of the current surrogate posterior, the predictions and noise sd there."""
     surrogate = _fit(x, y, bounds, settings, _CHECK)
     candidates, n_post = _refinement_candidates(
         surrogate, settings, _seed(settings.seed, _CHECK, 3)
@@ -281,7 +303,7 @@ def _propose_check(
     post = candidates[:n_post]
     u = edge_points(post, surrogate_log_likelihood(surrogate, settings.estimator)(post), size)
     mean, sd = surrogate.log_likelihood_uncertainty(u)
-    return u, mean.numpy(), sd.numpy()
+    return u, mean.numpy(), sd.numpy(), observation_noise_sd(surrogate, u)
 
 
 def calibrate(
@@ -292,6 +314,7 @@ def calibrate(
     progress: bool = True,
     on_iteration: Callable[[IterationReport], None] | None = None,
     design: np.ndarray | None = None,
+    expected_at_truth: tuple[float, float] | None = None,
 ) -> CalibrationResult:
     """Bayesian calibration of w on C_w from log L evaluations (the paper's four steps).
 
@@ -306,9 +329,16 @@ def calibrate(
         design: (n0 x q) initial design in physical units, inside C_w, instead of the
             space-filling one (a warm start, :mod:`susp_bo.monitoring.warm_start`);
             None = the space-filling design of ``initial_design_size`` points.
+        expected_at_truth: (mean, sd) of log L at the true parameters expected under the
+            output-error model (needs the model, not the truth), when it provides one; the
+            verdict then also checks the best log L against it.
 
     Returns:
-        The :class:`CalibrationResult`.
+        The :class:`CalibrationResult` (with its reliability verdict).
+
+    Raises:
+        BudgetTooSmallError: the budget is below the minimum for q and
+            ``settings.allow_small_budget`` is False (before any evaluation).
     """
     settings = settings or CalibrationSettings()
     b = check_bounds(bounds)
@@ -316,6 +346,20 @@ def calibrate(
     if len(names) != q:
         raise ValueError(f"names: {len(names)} names for q = {q} parameters")
     budget = settings.max_evaluations or 50 * (q + 2)
+    requirement = budget_requirement(
+        q, settings.initial_design_size, settings.batch_size, settings.check_points
+    )
+    if budget < requirement.minimum:
+        if not settings.allow_small_budget:
+            raise BudgetTooSmallError(
+                budget_message(budget, requirement, "max_evaluations", "set allow_small_budget")
+            )
+        logger.warning(
+            "budget of %d evaluations below the minimum %s: running anyway on request; the "
+            "result will not be trusted",
+            budget,
+            requirement.describe(),
+        )
     n0 = min(settings.initial_design_size or default_design_size(q), budget)
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
@@ -355,10 +399,10 @@ def calibrate(
     check = None
     if n_check > 0:
         with torch_threads(settings.num_threads):
-            u, predicted, sd = _propose_check(x, y, b, n_check, settings)
+            u, predicted, sd, noise = _propose_check(x, y, b, n_check, settings)
         w_new = from_unit(u.numpy(), b)
         y_new = _evaluate(evaluate, w_new)
-        check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance)
+        check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(n_check)
         _record(iteration + 1, "check", x, y, check.max_abs_error, history, on_iteration)
@@ -382,6 +426,29 @@ def calibrate(
         )
         log_l = surrogate_log_likelihood(surrogate, settings.estimator)
         summary = summarize(draws_u.numpy(), b, list(names), log_l)
+        u_map = torch.as_tensor(to_unit(summary.joint_map[None, :], b), dtype=torch.float64)
+        with torch.no_grad():
+            predicted_max = float(log_l(u_map)[0])
+            predicted_max_sd = float(surrogate.log_likelihood_uncertainty(u_map)[1][0])
+    searched = [h for h in history if h.phase != "check"]
+    reliability = assess(
+        names=names,
+        bounds=b,
+        budget=budget,
+        requirement=requirement,
+        best_log_likelihood=float(np.nanmax(y)) if np.isfinite(y).any() else -math.inf,
+        predicted_max=predicted_max,
+        predicted_max_sd=predicted_max_sd,
+        stop_reason=stop_reason,
+        last_phase=searched[-1].phase if searched else None,
+        last_criterion=searched[-1].criterion if searched else math.nan,
+        draws_unit=draws_u.numpy(),
+        r_hat=summary.r_hat,
+        ess=summary.ess,
+        check=check,
+        expected_at_truth=expected_at_truth,
+    )
+    logger.info(reliability.sentence)
     draws = from_unit(draws_u.numpy().reshape(-1, q), b).reshape(draws_u.shape)
     return CalibrationResult(
         names=tuple(names),
@@ -396,4 +463,5 @@ def calibrate(
         history=tuple(history),
         mcmc=diag,
         check=check,
+        reliability=reliability,
     )

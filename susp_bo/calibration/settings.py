@@ -47,6 +47,12 @@ class CalibrationSettings:
         candidate_count: posterior candidates scored per refinement batch (and as many widened).
         acquisition_restarts: restarts of the qLogEI optimisation.
         acquisition_raw_samples: raw samples for the qLogEI restarts.
+        allow_small_budget: run even when ``max_evaluations`` is below the minimum the
+            loop needs for q parameters (a design of max(10, 5 q) or the configured one
+            when larger, one batch, the check points:
+            :func:`susp_bo.calibration.reliability.budget_requirement`). False (default):
+            :func:`calibrate` refuses such a budget before any evaluation; True: it runs
+            and the verdict is ``not_trusted`` with ``budget_too_small``.
         num_threads: torch intra-op threads for the surrogate, acquisition and MCMC work
             (restored afterwards, never around ``evaluate``); None leaves torch's setting.
             The default 1 is fastest for these small matrices, by far on a shared machine.
@@ -73,6 +79,7 @@ class CalibrationSettings:
     candidate_count: int = 512
     acquisition_restarts: int = 6
     acquisition_raw_samples: int = 256
+    allow_small_budget: bool = False
     num_threads: int | None = 1
 
     def __post_init__(self) -> None:

@@ -13,7 +13,14 @@ against the rig's channels and band, the output folder and its store), then:
    without knowing the track exactly), or fixed in the config;
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
    simulator evaluation going through the evaluation store and the executor;
-4. ``result.json``, the config used, the figures and the log are written.
+4. ``result.json``, the config used, the figures and the log are written, with
+   the reliability verdict (:mod:`susp_bo.calibration.reliability`) in
+   ``result.json["reliability"]`` and at the end of the log (the commands print its
+   sentence last).
+
+A budget below what the q parameters need (:func:`check_budget`) is refused before
+any simulation unless ``budget.allow_small`` (``--allow-small-budget``) is set; then
+the study runs and its verdict is ``not_trusted`` with ``budget_too_small``.
 
 A study killed at any point is resumed with ``resume=True``: the store returns
 finished evaluations bit-for-bit and the loop is deterministic, so the result
@@ -43,6 +50,7 @@ from susp_bo.calibration.loop import (
     IterationReport,
     calibrate,
 )
+from susp_bo.calibration.reliability import budget_message, budget_requirement
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
@@ -244,6 +252,28 @@ def design_removal(spec: RigSpec, run: MeasuredRun) -> np.ndarray | None:
     )
 
 
+def check_budget(config: StudyConfig, q: int) -> None:
+    """Refuses a budget below the minimum for q parameters, unless ``budget.allow_small``.
+
+    Raises:
+        StudyError: naming ``--budget`` (``budget.max_evaluations``), the value and the
+            minimum (:func:`susp_bo.calibration.reliability.budget_requirement`).
+    """
+    budget = config.budget
+    requirement = budget_requirement(
+        q, budget.initial_design, budget.batch_size, budget.check_points
+    )
+    if budget.max_evaluations < requirement.minimum and not budget.allow_small:
+        raise StudyError(
+            budget_message(
+                budget.max_evaluations,
+                requirement,
+                "budget.max_evaluations (--budget)",
+                "set [budget] allow_small = true (--allow-small-budget)",
+            )
+        )
+
+
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     """Check every input of a study and load its data (no simulation).
 
@@ -256,6 +286,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         check_output_folder(config.out, "out")
     except (FileNotFoundError, ValueError) as error:
         raise StudyError(str(error)) from error
+    check_budget(config, len(names))
     store_path = config.out / STORE_NAME
     if store_path.exists() and not resume:
         raise StudyError(
@@ -353,7 +384,19 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         mcmc_chains=config.mcmc.chains,
         mcmc_warmup=config.mcmc.warmup,
         mcmc_samples=config.mcmc.draws,
+        allow_small_budget=config.budget.allow_small,
     )
+
+
+def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float] | None:
+    """(mean, sd) of log L at the true parameters expected under the output-error model B.
+
+    At the truth the residuals y_i − h(x_i, w) are draws of B, so this expectation needs
+    B only, not the truth itself: it applies to measured data too. None until the
+    output-error model provides it (wire it here); the verdict then also checks the best
+    log L against it (``not_converged``).
+    """
+    return None
 
 
 def _logger(out: Path) -> logging.Logger:
@@ -392,6 +435,7 @@ def result_payload(
         "best_log_likelihood": float(np.nanmax(result.y)),
         "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **result.mcmc},
         "surrogate_check": None if result.check is None else result.check.to_dict(result.bounds),
+        "reliability": None if result.reliability is None else result.reliability.to_dict(),
         "reference": None if study.reference is None else study.reference.tolist(),
         "output_error": {
             "channels": list(study.spec.channels),
@@ -469,6 +513,7 @@ def run_study(
             calibration_settings(config),
             progress=progress,
             on_iteration=report,
+            expected_at_truth=expected_log_likelihood_at_truth(study),
         )
         n_simulations = store.count()
     if result.check is not None:
@@ -489,6 +534,8 @@ def run_study(
     write_json(out / RESULT_NAME, payload)
     write_figures(study, result, out)
     log.info("result written: %s", out / RESULT_NAME)
+    if result.reliability is not None:  # the commands print it last, under their summary
+        log.info("reliability: %s", result.reliability.sentence)
     return payload, result
 
 

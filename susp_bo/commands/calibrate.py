@@ -53,18 +53,27 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
             config = parse_study_config(
                 {"rig": args.rig_or_study, "data": args.data_dir, "out": args.out}, Path.cwd()
             )
+        allow_small = config.budget.allow_small or getattr(args, "allow_small_budget", False)
         if args.budget is not None:
             budget = config.budget
+            design = _design_for_budget(config, args.budget)
+            if not allow_small:
+                _refuse_small_budget(config, args.budget, design)
             try:
                 changed = BudgetConfig(
                     max_evaluations=args.budget,
-                    initial_design=min(budget.initial_design, args.budget),
+                    initial_design=design,
                     batch_size=budget.batch_size,
                     check_points=budget.check_points,
+                    allow_small=allow_small,
                 )
             except ValueError as error:
                 raise UsageError(f"--budget: {args.budget} is not allowed ({error})") from None
             config = dataclasses.replace(config, budget=changed)
+        elif allow_small:
+            config = dataclasses.replace(
+                config, budget=dataclasses.replace(config.budget, allow_small=True)
+            )
         if args.workers is not None or args.scheduler is not None:
             config = dataclasses.replace(
                 config, executor=ExecutorConfig(workers=args.workers, scheduler=args.scheduler)
@@ -72,6 +81,50 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
     except ValueError as error:
         raise UsageError(str(error)) from error
     return config
+
+
+def _calibrated_count(config: StudyConfig) -> int | None:
+    """q of the study (None when the rig or the parameter list is bad: the study reports it)."""
+    from susp_bo.rig.spec import load_rig_spec
+
+    try:
+        return len(config.check_parameters(load_rig_spec(config.rig).calibration_names))
+    except (FileNotFoundError, ValueError):
+        return None
+
+
+def _design_for_budget(config: StudyConfig, budget: int) -> int:
+    """The design size for ``--budget``: the config's, shrunk when the budget is tight.
+
+    It shrinks to leave one refinement batch and the check points, but not below what q
+    needs (max(10, 5 q)), and never beyond the budget: q = 7 with the default design of 40,
+    batches of 8 and 8 check points gets 40 from a budget of 56 up, budget − 16 from 51 to
+    55, and 35 below (refused unless --allow-small-budget).
+    """
+    from susp_bo.calibration.design import default_design_size
+
+    b = config.budget
+    q = _calibrated_count(config)
+    room = budget - b.batch_size - b.check_points
+    floor = default_design_size(q) if q is not None else 2
+    return max(2, min(b.initial_design, max(room, floor), budget))
+
+
+def _refuse_small_budget(config: StudyConfig, budget: int, design: int) -> None:
+    """Refuses ``--budget`` below the minimum for the study's q parameters.
+
+    Raises:
+        UsageError: naming --budget, the value and the minimum.
+    """
+    from susp_bo.calibration.reliability import budget_message, budget_requirement
+
+    q = _calibrated_count(config)
+    if q is None:
+        return
+    b = config.budget
+    requirement = budget_requirement(q, design, b.batch_size, b.check_points)
+    if budget < requirement.minimum:
+        raise UsageError(budget_message(budget, requirement))
 
 
 def _is_study(path: Path) -> bool:
@@ -92,13 +145,17 @@ def run_calibrate(args: argparse.Namespace) -> int:
         payload, _ = run_study(config, resume=args.resume)
     except StudyError as error:
         raise UsageError(str(error)) from error
-    print(format_summary(payload), file=sys.stderr)
     print(f"susp-bo calibrate: results in {config.out}", file=sys.stderr)
+    print(format_summary(payload), file=sys.stderr)
     return 0
 
 
 def format_summary(payload: dict) -> str:
-    """A plain-text table of the posterior (what a maintenance engineer reads first)."""
+    """A plain-text table of the posterior (what a maintenance engineer reads first).
+
+    Its last line is the reliability sentence (``payload["reliability"]["sentence"]``), or
+    says that the result has no verdict (a result.json from an older version).
+    """
     lines = [f"{'parameter':34s} {'marginal MAP':>13s} {'95 % interval':>27s} {'reference':>11s}"]
     reference = payload.get("reference")
     for k, name in enumerate(payload["parameters"]):
@@ -110,5 +167,10 @@ def format_summary(payload: dict) -> str:
     lines.append(
         f"simulator runs: {payload['n_simulations']}, likelihood evaluations: "
         f"{payload['n_evaluations']}, wall time {payload['wall_time_s']:.0f} s"
+    )
+    reliability = payload.get("reliability") or {}
+    lines.append(
+        reliability.get("sentence")
+        or "Not trusted: no reliability verdict (a result from an older version)."
     )
     return "\n".join(lines)

@@ -41,7 +41,13 @@ def demo_config(out: Path, smoke: bool, seed: int) -> StudyConfig:
             data=out / "data",
             out=out,
             parameters=("secondary_vertical_damping", "yaw_damper_damping"),
-            budget=BudgetConfig(max_evaluations=10, initial_design=6, batch_size=2, check_points=2),
+            budget=BudgetConfig(
+                max_evaluations=10,
+                initial_design=6,
+                batch_size=2,
+                check_points=2,
+                allow_small=True,  # tiny on purpose: the verdict says budget_too_small
+            ),
             mcmc=MCMCConfig(chains=8, draws=300, warmup=200),
         )
     return StudyConfig(
@@ -74,6 +80,6 @@ def run_demo(out: str | Path, smoke: bool = False, seed: int = 2024) -> int:
     config = demo_config(folder, smoke, seed)
     resume = (folder / "evaluations.sqlite").exists()
     payload, _ = run_study(config, resume=resume)
-    print(format_summary(payload), file=sys.stderr)
     print(f"susp-bo demo: wrote {folder / 'result.json'} and figures", file=sys.stderr)
+    print(format_summary(payload), file=sys.stderr)
     return 0

@@ -88,7 +88,9 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
         folder = out / "augmented"
         folder.mkdir(parents=True, exist_ok=True)
         (folder / STORE_NAME).unlink(missing_ok=True)
-        settings = calibration_settings(study.config)
+        # the recalibration is judged by the gap it closes, not by its own verdict: a small
+        # --budget for it is allowed (the study itself was checked when it ran)
+        settings = dataclasses.replace(calibration_settings(study.config), allow_small_budget=True)
         if budget is not None:
             settings = dataclasses.replace(
                 settings,

@@ -71,8 +71,15 @@ def test_failed_runs_are_ignored_by_the_verdict() -> None:
         tolerance_nats=1.0,
     )
     assert check.verdict == "ok" and check.max_abs_error == pytest.approx(0.5)
-    check = SurrogateCheck(np.zeros((2, 1)), np.zeros(2), np.ones(2), np.array([2.0, -3.0]), 1.0)
-    assert check.verdict == "underconfident"
+    # one point above and one below the band: both directions, not the sign of the largest
+    check = SurrogateCheck(np.zeros((2, 1)), np.zeros(2), np.zeros(2), np.array([2.0, -3.0]), 1.0)
+    assert check.verdict == "mixed" and check.outside.tolist() == [True, True]
+    # errors within 3 GP sd (1 nat) and jointly plausible (Σ z² 6.25 < χ²_2 99 % 9.21): ok
+    check = SurrogateCheck(np.zeros((2, 1)), np.zeros(2), np.ones(2), np.array([1.5, -2.0]), 1.0)
+    assert check.verdict == "ok" and check.band.tolist() == [3.0, 3.0]
+    # within 3 sd each, but jointly too large (Σ z² 12.4): the larger one is outside
+    check = SurrogateCheck(np.zeros((2, 1)), np.zeros(2), np.ones(2), np.array([2.0, -2.9]), 1.0)
+    assert check.joint_p_value < 0.01 and check.verdict == "underconfident"
     all_failed = SurrogateCheck(np.zeros((1, 1)), np.zeros(1), np.ones(1), np.full(1, math.nan), 1)
     assert all_failed.verdict == "ok" and math.isnan(all_failed.max_abs_error)
 

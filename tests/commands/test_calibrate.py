@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from susp_bo.cli import main
+from susp_bo.cli import build_parser, main
 
 
 @pytest.fixture
@@ -61,3 +61,34 @@ def test_resume_without_a_store_is_refused(
     )
     assert code == 2
     assert "nothing to resume" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("budget", "design"), [(51, 35), (55, 39), (56, 40), (200, 40)])
+def test_budget_shrinks_the_design_down_to_what_q_needs(
+    data_dir: Path, tmp_path: Path, budget: int, design: int
+) -> None:
+    """q = 7, design 40, batches of 8, 8 check points: room for one batch and the check."""
+    from susp_bo.commands.calibrate import config_from_arguments
+
+    command = ["calibrate", "hst_trailer", str(data_dir), "--out", str(tmp_path / "o")]
+    args = build_parser().parse_args([*command, "--budget", str(budget)])
+    config = config_from_arguments(args)
+    assert (config.budget.max_evaluations, config.budget.initial_design) == (budget, design)
+    assert not config.budget.allow_small
+
+
+def test_a_budget_below_the_minimum_is_refused_or_allowed_on_request(
+    data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "o"
+    assert (
+        main(["calibrate", "hst_trailer", str(data_dir), "--out", str(out), "--budget", "40"]) == 2
+    )
+    err = capsys.readouterr().err
+    assert "--budget 40 is below the minimum 51 for q = 7 parameters" in err
+    from susp_bo.commands.calibrate import config_from_arguments
+
+    command = ["calibrate", "hst_trailer", str(data_dir), "--out", str(out), "--budget", "40"]
+    args = build_parser().parse_args([*command, "--allow-small-budget"])
+    config = config_from_arguments(args)
+    assert config.budget.allow_small and config.budget.initial_design == 35

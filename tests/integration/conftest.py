@@ -44,7 +44,8 @@ def fast_data(fast_rig: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
 def write_study(
     folder: Path, rig: Path, data: Path, out: Path, executor: str = "workers = 2"
 ) -> Path:
-    """A small study config (q = 2, 10 evaluations in batches of 2) in ``folder``."""
+    """A small study config (q = 2, 10 evaluations in batches of 2, below the minimum on
+    purpose: ``allow_small``) in ``folder``."""
     path = folder / "study.toml"
     path.write_text(
         f"""rig = "{rig}"
@@ -56,6 +57,7 @@ parameters = {list(FAST_PARAMETERS)!r}
 max_evaluations = 10
 initial_design = 6
 batch_size = 2
+allow_small = true
 
 [executor]
 {executor}

@@ -1,0 +1,506 @@
+"""Can this calibration be trusted? The reliability verdict and its rules.
+
+A maintainer acts on a 95 % interval, so the result must say when it does not
+know. :func:`assess` applies the rules below to what the loop saw and returns a
+:class:`Reliability`: ``trusted`` only when no rule fires, otherwise
+``not_trusted`` with one reason per rule that fired (``code``, a plain
+``message`` and the numbers behind it) and one sentence an engineer reads.
+
+Rules (each a pure function of numbers, testable alone):
+
+- ``budget_too_small`` (:func:`budget_too_small`): the budget leaves no room for
+  the loop's own structure — a design of max(10, 5 q) points (or the configured
+  one when larger), one refinement batch and the held-out check. Below that the
+  study and the command line refuse to start unless explicitly allowed
+  (:func:`budget_requirement` names the minimum).
+- ``not_converged`` (:func:`not_converged`): the search did not reach the
+  optimum — the best observed log L lies more than ``gap_tolerance`` nats plus
+  ``z`` GP standard deviations below the surrogate's predicted maximum (its value
+  at the joint MAP); or the refinement stopped on the budget rather than on its
+  criterion (no refinement at all, EGO still running, or the posterior mean of
+  sd[log L̃] still above ``uncertainty_tolerance`` nats); or, when the output-error
+  model gives the log L expected at the true parameters (mean, sd), the best
+  observed log L lies far below it.
+- ``at_bound`` (:func:`at_bound`): more than ``mass`` of a parameter's posterior
+  draws sit within ``strip`` (fraction of the admissible width) of one bound —
+  the posterior is cut off by C_w, so the true value may lie outside it or the
+  search stopped early. (A flat posterior puts ``strip`` there; a posterior one
+  sd wide whose mode sits one sd inside the bound puts about 5 %.)
+- ``surrogate_misfit`` (:func:`surrogate_misfit`): held-out points at the
+  posterior's edges fell outside the surrogate's predictive band (see
+  :class:`~susp_bo.calibration.surrogate_check.SurrogateCheck`: GP sd and
+  observation noise accounted for), with the direction the signs say
+  (``overconfident``: log L higher than predicted, the real posterior is wider;
+  ``underconfident``: lower, narrower; ``mixed``: both, misplaced or misshapen).
+- ``surrogate_unchecked``: no held-out check ran (``check_points = 0`` or no
+  budget left for it). Nothing then tests the surrogate posterior against the
+  simulator, so the result is not trusted on the surrogate's word alone.
+- ``poor_mixing`` (:func:`poor_mixing`): split R-hat above ``r_hat_max`` (1.05) or
+  bulk ESS below ``ess_min`` (400) on any parameter.
+
+The thresholds are the keyword defaults of the rule functions; the README lists
+them with each reason.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from susp_bo.calibration.design import default_design_size
+from susp_bo.calibration.surrogate_check import SurrogateCheck
+
+Verdict = Literal["trusted", "not_trusted"]
+Reason = dict[str, Any]
+"""One reason: ``code`` (str), ``message`` (str, plain words) and the numbers behind it."""
+
+ORDER = (
+    "budget_too_small",
+    "not_converged",
+    "at_bound",
+    "surrogate_misfit",
+    "surrogate_unchecked",
+    "poor_mixing",
+)
+"""Reason codes, most fundamental first (the sentence leads with the first that fired)."""
+
+
+@dataclass(frozen=True)
+class Reliability:
+    """The verdict on a calibration result.
+
+    Attributes:
+        verdict: ``"trusted"`` (no rule fired) or ``"not_trusted"``.
+        reasons: one dict per rule that fired: ``code``, ``message`` and its numbers.
+        sentence: one plain sentence for the end of a run.
+        evidence: the numbers every rule looked at (budget, best and predicted log L,
+            R-hat, ESS, ...), whether or not it fired.
+    """
+
+    verdict: Verdict
+    reasons: tuple[Reason, ...] = ()
+    sentence: str = ""
+    evidence: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.verdict not in ("trusted", "not_trusted"):
+            raise ValueError(f"verdict: {self.verdict!r}, expected 'trusted' or 'not_trusted'")
+        reasons = tuple(dict(r) for r in self.reasons)
+        for r in reasons:
+            if not isinstance(r.get("code"), str) or not isinstance(r.get("message"), str):
+                raise ValueError(f"reasons: {r!r} needs a 'code' and a 'message' (strings)")
+        if (self.verdict == "trusted") != (not reasons):
+            raise ValueError(
+                f"verdict: {self.verdict!r} with {len(reasons)} reasons; 'trusted' means none"
+            )
+        object.__setattr__(self, "reasons", reasons)
+        object.__setattr__(self, "evidence", dict(self.evidence))
+
+    @property
+    def trusted(self) -> bool:
+        """True when no rule fired."""
+        return self.verdict == "trusted"
+
+    @property
+    def codes(self) -> tuple[str, ...]:
+        """The reason codes, in order."""
+        return tuple(r["code"] for r in self.reasons)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``result.json["reliability"]`` object (JSON-ready)."""
+        return {
+            "verdict": self.verdict,
+            "reasons": [dict(r) for r in self.reasons],
+            "sentence": self.sentence,
+            "evidence": dict(self.evidence),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Reliability:
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            verdict=data["verdict"],
+            reasons=tuple(data.get("reasons", ())),
+            sentence=str(data.get("sentence", "")),
+            evidence=dict(data.get("evidence", {})),
+        )
+
+
+# -- budget ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BudgetRequirement:
+    """The smallest budget the loop's structure needs for q parameters.
+
+    Attributes:
+        q: number of calibrated parameters.
+        design: design points needed: max(configured design, max(10, 5 q)).
+        batch: one refinement batch (``batch_size``).
+        check: held-out check points (``check_points``).
+    """
+
+    q: int
+    design: int
+    batch: int
+    check: int
+
+    @property
+    def minimum(self) -> int:
+        """design + batch + check evaluations."""
+        return self.design + self.batch + self.check
+
+    def describe(self) -> str:
+        """'56 for q = 7 parameters (a design of 40 + one refinement batch of 8 + ...)'."""
+        check = f" + {self.check} check points" if self.check else ""
+        return (
+            f"{self.minimum} for q = {self.q} parameters (a design of {self.design}"
+            f" + one refinement batch of {self.batch}{check})"
+        )
+
+
+def budget_requirement(
+    q: int, initial_design: int | None, batch_size: int, check_points: int
+) -> BudgetRequirement:
+    """The minimum budget for q parameters given the loop settings.
+
+    Args:
+        q: number of calibrated parameters.
+        initial_design: configured design size (None: the loop's default max(10, 5 q)).
+        batch_size: points per refinement batch.
+        check_points: held-out check points.
+    """
+    design = max(int(initial_design or 0), default_design_size(q))
+    return BudgetRequirement(int(q), design, int(batch_size), int(check_points))
+
+
+def budget_message(
+    budget: int,
+    requirement: BudgetRequirement,
+    flag: str = "--budget",
+    override: str = "pass --allow-small-budget",
+) -> str:
+    """The refusal message: names ``flag``, the value, the minimum and the override."""
+    return (
+        f"{flag} {budget} is below the minimum {requirement.describe()}: no room to refine "
+        f"the search and check the surrogate; give {flag} {requirement.minimum} or more, or "
+        f"{override} to run anyway (the result is then marked not trusted)"
+    )
+
+
+def budget_too_small(budget: int, requirement: BudgetRequirement) -> Reason | None:
+    """``budget_too_small`` when ``budget`` < the requirement's minimum."""
+    if budget >= requirement.minimum:
+        return None
+    return {
+        "code": "budget_too_small",
+        "message": (
+            f"the budget of {budget} evaluations is below the minimum {requirement.describe()}"
+        ),
+        "budget": int(budget),
+        "minimum": requirement.minimum,
+    }
+
+
+# -- convergence ----------------------------------------------------------------------------
+
+
+def not_converged(
+    *,
+    best_log_likelihood: float,
+    predicted_max: float,
+    predicted_max_sd: float,
+    stop_reason: str,
+    last_phase: str | None,
+    last_criterion: float,
+    expected_at_truth: tuple[float, float] | None = None,
+    gap_tolerance: float = 1.0,
+    z: float = 2.0,
+    uncertainty_tolerance: float = 0.3,
+    truth_z: float = 3.0,
+) -> Reason | None:
+    """``not_converged`` when the search did not reach the optimum (module docstring).
+
+    Args:
+        best_log_likelihood: best observed log L (nats).
+        predicted_max: the final surrogate's log L̃ at its maximiser (joint MAP), nats.
+        predicted_max_sd: the GP's sd of log L̃ there (nats).
+        stop_reason: ``CalibrationResult.stop_reason`` ("budget", "converged", ...).
+        last_phase: phase of the last EGO/refinement batch ("ego", "refine"), None if none ran.
+        last_criterion: its stopping statistic (EI/spread or posterior mean sd[log L̃], nats).
+        expected_at_truth: (mean, sd) of log L at the true parameters under the output-error
+            model, when the model provides it.
+        gap_tolerance: nats allowed between the predicted maximum and the best observed.
+        z: GP standard deviations allowed on top of ``gap_tolerance``.
+        uncertainty_tolerance: posterior mean sd[log L̃] (nats) above which a refinement
+            stopped by the budget counts as unfinished.
+        truth_z: sds of the truth's log L allowed below its mean (plus ``gap_tolerance``).
+    """
+    findings: list[str] = []
+    reason: Reason = {"code": "not_converged"}
+    gap = predicted_max - best_log_likelihood
+    allowed = gap_tolerance + z * max(predicted_max_sd, 0.0)
+    if not math.isfinite(best_log_likelihood) or gap > allowed:
+        findings.append(
+            f"the search did not reach the optimum (best log L {best_log_likelihood:.1f} is "
+            f"{gap:.1f} nats below the surrogate's predicted maximum {predicted_max:.1f} "
+            f"± {predicted_max_sd:.2g})"
+        )
+        reason.update(optimum_gap_nats=float(gap), optimum_gap_allowed_nats=float(allowed))
+    unfinished = None
+    if stop_reason == "budget":
+        if last_phase is None:
+            unfinished = "the budget ran out after the design: no refinement ran"
+        elif last_phase == "ego":
+            unfinished = "the budget ran out while EGO was still searching (no refinement)"
+        elif not last_criterion <= uncertainty_tolerance:
+            unfinished = (
+                f"the budget ran out before the refinement converged (posterior sd of log L "
+                f"{last_criterion:.2f} nats > {uncertainty_tolerance:g})"
+            )
+    if unfinished is not None:
+        findings.append(unfinished)
+        reason.update(stopped_by="budget", last_phase=last_phase, last_criterion=last_criterion)
+    if expected_at_truth is not None:
+        mean, sd = expected_at_truth
+        floor = mean - gap_tolerance - truth_z * sd
+        if not best_log_likelihood >= floor:
+            findings.append(
+                f"the best log L {best_log_likelihood:.1f} is {mean - best_log_likelihood:.1f} "
+                f"nats below the log L expected at the true parameters ({mean:.1f} ± {sd:.2g})"
+            )
+            reason.update(expected_at_truth=[float(mean), float(sd)])
+    if not findings:
+        return None
+    reason["message"] = "; ".join(findings)
+    return reason
+
+
+def at_bound(
+    draws_unit: np.ndarray,
+    names: Sequence[str],
+    bounds: np.ndarray,
+    strip: float = 0.02,
+    mass: float = 0.10,
+) -> Reason | None:
+    """``at_bound`` when a marginal piles up against an admissible bound.
+
+    Args:
+        draws_unit: (n x q) posterior draws in the unit cube.
+        names: (q,) parameter names.
+        bounds: (2 x q) admissible bounds (physical units, for the message).
+        strip: width of the strip at each bound, as a fraction of the admissible width.
+        mass: share of the draws in one strip above which the rule fires (5 x a flat
+            posterior's ``strip`` at the defaults).
+    """
+    u = np.asarray(draws_unit, dtype=np.float64)
+    lower = np.mean(u < strip, axis=0)
+    upper = np.mean(u > 1.0 - strip, axis=0)
+    pinned = []
+    for k, name in enumerate(names):
+        for side, share, value in (
+            ("lower", lower[k], bounds[0, k]),
+            ("upper", upper[k], bounds[1, k]),
+        ):
+            if share > mass:
+                pinned.append((name, side, float(share), float(value)))
+    if not pinned:
+        return None
+    parts = [f"{n} ({s:.0%} of the draws at its {side} bound {v:.4g})" for n, side, s, v in pinned]
+    return {
+        "code": "at_bound",
+        "message": (
+            "posterior mass piled at an admissible bound: " + ", ".join(parts) + "; the true "
+            "value may lie outside the admissible set or the search stopped early"
+        ),
+        "parameters": [{"name": n, "side": side, "share": s} for n, side, s, _ in pinned],
+    }
+
+
+# -- surrogate and sampler --------------------------------------------------------------------
+
+
+def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> Reason | None:
+    """``surrogate_misfit`` (check outside its band) or ``surrogate_unchecked`` (no check).
+
+    Args:
+        check: the held-out check, None when none ran.
+        gross_nats: an error beyond this (nats) is called gross in the message: the point
+            lies outside the posterior's region altogether (a 95 % edge in 7-D sits about
+            7 nats below the maximum), so the surrogate posterior is misplaced rather than
+            merely too wide or too narrow.
+    """
+    if check is None:
+        return {
+            "code": "surrogate_unchecked",
+            "message": (
+                "the surrogate posterior was not checked against held-out simulations "
+                "(check_points = 0 or no budget left for the check)"
+            ),
+        }
+    if check.verdict == "ok":
+        return None
+    e = check.errors
+    above = check.outside & (e > 0)
+    below = check.outside & (e < 0)
+    parts = []
+    if above.any():
+        parts.append(
+            f"{int(above.sum())} above the prediction (up to +{float(np.max(e[above])):.1f} nats: "
+            "the real posterior is wider there)"
+        )
+    if below.any():
+        parts.append(
+            f"{int(below.sum())} below (down to {float(np.min(e[below])):.1f} nats: narrower there)"
+        )
+    gross = ""
+    if float(np.max(np.abs(e[check.outside]))) > gross_nats:
+        gross = (
+            f"; errors beyond {gross_nats:g} nats mean the surrogate posterior is misplaced or "
+            "grossly misshapen, not only too wide or too narrow"
+        )
+    return {
+        "code": "surrogate_misfit",
+        "message": (
+            f"the held-out check found {int(check.outside.sum())} of {len(e)} posterior-edge "
+            f"points outside the surrogate's predictive band, {check.verdict}: "
+            + " and ".join(parts)
+            + gross
+        ),
+        "direction": check.verdict,
+        "n_above": int(above.sum()),
+        "n_below": int(below.sum()),
+        "max_abs_error_nats": check.max_abs_error,
+    }
+
+
+def poor_mixing(
+    r_hat: np.ndarray,
+    ess: np.ndarray,
+    names: Sequence[str],
+    r_hat_max: float = 1.05,
+    ess_min: float = 400.0,
+) -> Reason | None:
+    """``poor_mixing`` when R-hat > ``r_hat_max`` or ESS < ``ess_min`` on any parameter."""
+    r = np.asarray(r_hat, dtype=np.float64)
+    n = np.asarray(ess, dtype=np.float64)
+    bad_r = [k for k in range(len(names)) if not r[k] <= r_hat_max]
+    bad_n = [k for k in range(len(names)) if not n[k] >= ess_min]
+    if not bad_r and not bad_n:
+        return None
+    parts = []
+    if bad_r:
+        k = max(bad_r, key=lambda i: r[i] if math.isfinite(r[i]) else math.inf)
+        parts.append(f"R-hat {r[k]:.3f} > {r_hat_max:g} on {names[k]}")
+    if bad_n:
+        k = min(bad_n, key=lambda i: n[i] if math.isfinite(n[i]) else -math.inf)
+        parts.append(f"ESS {n[k]:.0f} < {ess_min:g} on {names[k]}")
+    return {
+        "code": "poor_mixing",
+        "message": "the MCMC did not mix: " + " and ".join(parts),
+        "parameters": sorted({names[k] for k in bad_r + bad_n}),
+    }
+
+
+# -- the verdict --------------------------------------------------------------------------------
+
+
+_ADVICE = {
+    "budget_too_small": "rerun with --budget {minimum} or more",
+    "not_converged": "rerun with --resume --budget {more}",
+    "at_bound": "widen that parameter's admissible interval if its value may lie outside, "
+    "or rerun with --resume --budget {more}",
+    "surrogate_misfit": "rerun with --resume --budget {more}",
+    "surrogate_unchecked": "rerun with check points ([budget] check_points)",
+    "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
+}
+
+
+def sentence(reasons: Sequence[Reason], evidence: Mapping[str, Any]) -> str:
+    """One plain sentence: what is wrong first (or why it is trusted), then what to do."""
+    if not reasons:
+        return (
+            "Trusted: the search converged (best log L within "
+            f"{evidence.get('optimum_gap_nats', math.nan):.2f} nats of the surrogate's maximum), "
+            f"the held-out check agreed at {evidence.get('check_points', 0)} posterior-edge "
+            f"points and the MCMC mixed (R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
+            f"ESS >= {evidence.get('ess_min', math.nan):.0f})."
+        )
+    first = reasons[0]
+    budget = int(evidence.get("budget", 0))
+    advice = _ADVICE.get(first["code"], "rerun with a larger budget").format(
+        minimum=evidence.get("minimum_budget", budget),
+        more=max(2 * budget, int(evidence.get("minimum_budget", 0))),
+    )
+    others = [r["code"] for r in reasons[1:]]
+    also = f" (also: {', '.join(others)})" if others else ""
+    return f"Not trusted: {first['message']}{also}; {advice}."
+
+
+def assess(
+    *,
+    names: Sequence[str],
+    bounds: np.ndarray,
+    budget: int,
+    requirement: BudgetRequirement,
+    best_log_likelihood: float,
+    predicted_max: float,
+    predicted_max_sd: float,
+    stop_reason: str,
+    last_phase: str | None,
+    last_criterion: float,
+    draws_unit: np.ndarray,
+    r_hat: np.ndarray,
+    ess: np.ndarray,
+    check: SurrogateCheck | None,
+    expected_at_truth: tuple[float, float] | None = None,
+) -> Reliability:
+    """Applies every rule and returns the verdict (arguments as in the rule functions).
+
+    Args:
+        draws_unit: (... x q) posterior draws in the unit cube (chains pooled here).
+    """
+    q = len(names)
+    u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
+    found = [
+        budget_too_small(budget, requirement),
+        not_converged(
+            best_log_likelihood=best_log_likelihood,
+            predicted_max=predicted_max,
+            predicted_max_sd=predicted_max_sd,
+            stop_reason=stop_reason,
+            last_phase=last_phase,
+            last_criterion=last_criterion,
+            expected_at_truth=expected_at_truth,
+        ),
+        at_bound(u, names, bounds),
+        surrogate_misfit(check),
+        poor_mixing(r_hat, ess, names),
+    ]
+    reasons = sorted((r for r in found if r is not None), key=lambda r: ORDER.index(r["code"]))
+    evidence: dict[str, Any] = {
+        "budget": int(budget),
+        "minimum_budget": requirement.minimum,
+        "best_log_likelihood": float(best_log_likelihood),
+        "predicted_max_log_likelihood": float(predicted_max),
+        "predicted_max_sd": float(predicted_max_sd),
+        "optimum_gap_nats": float(predicted_max - best_log_likelihood),
+        "stop_reason": stop_reason,
+        "last_phase": last_phase,
+        "last_criterion": float(last_criterion) if math.isfinite(last_criterion) else None,
+        "expected_at_truth": None if expected_at_truth is None else list(expected_at_truth),
+        "check_verdict": None if check is None else check.verdict,
+        "check_points": 0 if check is None else len(check.observed),
+        "r_hat_max": float(np.max(r_hat)),
+        "ess_min": float(np.min(ess)),
+    }
+    return Reliability(
+        verdict="not_trusted" if reasons else "trusted",
+        reasons=tuple(reasons),
+        sentence=sentence(reasons, evidence),
+        evidence=evidence,
+    )
