@@ -36,6 +36,11 @@ def add_parser(sub: Any) -> None:
         default=0.9,
         help="alarm when P(outside) exceeds it on a trusted calibration (default: %(default)s)",
     )
+    monitor.add_argument(
+        "--allow-small-budget",
+        action="store_true",
+        help="run campaigns below the minimum budget for q (their verdicts: not trusted)",
+    )
     monitor.set_defaults(handler=run_monitor)
 
 
@@ -60,6 +65,7 @@ def run_monitor(args: argparse.Namespace) -> int:
             workers=args.workers,
             scheduler=args.scheduler,
             threshold=args.threshold,
+            allow_small_budget=args.allow_small_budget,
         )
     except MonitorError as error:
         raise UsageError(str(error)) from None

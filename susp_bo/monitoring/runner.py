@@ -58,7 +58,6 @@ from susp_bo.monitoring.alarms import (
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
 from susp_bo.rig.spec import load_rig_spec
 from susp_bo.study_config import (
-    BudgetConfig,
     ExecutorConfig,
     StudyConfig,
     parse_study_config,
@@ -81,6 +80,7 @@ def base_config(
     budget: int | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
+    allow_small_budget: bool = False,
 ) -> StudyConfig:
     """The study config every campaign shares (``data``/``out`` set per campaign).
 
@@ -111,12 +111,15 @@ def base_config(
         if budget is not None:
             config = dataclasses.replace(
                 config,
-                budget=BudgetConfig(
+                budget=dataclasses.replace(
+                    config.budget,
                     max_evaluations=budget,
                     initial_design=min(config.budget.initial_design, budget),
-                    batch_size=config.budget.batch_size,
-                    check_points=config.budget.check_points,
                 ),
+            )
+        if allow_small_budget:
+            config = dataclasses.replace(
+                config, budget=dataclasses.replace(config.budget, allow_small=True)
             )
         if workers is not None or scheduler is not None:
             config = dataclasses.replace(
@@ -156,6 +159,7 @@ def monitor(
     workers: int | None = None,
     scheduler: str | None = None,
     threshold: float = ALARM_THRESHOLD,
+    allow_small_budget: bool = False,
     figures: bool = True,
     progress: bool = True,
 ) -> dict[str, Any]:
@@ -170,6 +174,9 @@ def monitor(
         workers: local worker processes for the simulator runs (0 = in-process).
         scheduler: Dask scheduler address instead of workers.
         threshold: alarm when P(outside) > threshold on a trusted calibration.
+        allow_small_budget: run campaigns whose budget is below the minimum for q
+            parameters (refused otherwise, before any simulation); their calibrations are
+            then not trusted and never raise or clear an alarm.
         figures: write the trend figures.
         progress: progress lines on stderr.
 
@@ -192,6 +199,7 @@ def monitor(
         budget=budget,
         workers=workers,
         scheduler=scheduler,
+        allow_small_budget=allow_small_budget,
     )
     try:
         spec = load_rig_spec(base.rig)
