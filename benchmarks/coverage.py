@@ -55,7 +55,11 @@ from susp_bo.calibration.likelihood import (  # noqa: E402
     estimate_output_error,
     log_likelihood,
 )
-from susp_bo.calibration.loop import CalibrationSettings, calibrate  # noqa: E402
+from susp_bo.calibration.loop import (  # noqa: E402
+    CalibrationSettings,
+    IterationReport,
+    calibrate,
+)
 from susp_bo.calibration.paired_error import (  # noqa: E402
     PairedOutputError,
     paired_expected_log_likelihood,
@@ -182,7 +186,17 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
     seed = int(np.random.SeedSequence([options.seed, experiment, 13]).generate_state(1)[0])
     problem = FastPathProblem(spec, dict(zip(names, truth.tolist())), options, seed)
     settings = demo_settings(options, experiment)
-    result = calibrate(problem, bounds, names, settings, progress=False)
+
+    def report(item: IterationReport) -> None:
+        print(
+            f"coverage: experiment {experiment}: iteration {item.iteration} [{item.phase}] "
+            f"{item.n_evaluations} evaluations, best log L {item.best_log_likelihood:.1f} "
+            f"({time.perf_counter() - started:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    result = calibrate(problem, bounds, names, settings, progress=False, on_iteration=report)
     draws = result.draws.reshape(-1, len(names))
     quantile = np.mean(draws < truth[None, :], axis=0)
     mean, sd = draws.mean(axis=0), draws.std(axis=0)

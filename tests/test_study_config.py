@@ -57,9 +57,7 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         seeds=SeedsConfig(calibration=0, mcmc=1),
         executor=ExecutorConfig(workers=8),
         mcmc=MCMCConfig(chains=512, draws=2000, warmup=500),
-        output_error=OutputErrorConfig(
-            sigma="estimate", correlation_length_hz=0.5, sensor_noise_m_s2=0.005
-        ),
+        output_error=OutputErrorConfig(model="paired", sigma="estimate", sensor_noise_m_s2=0.005),
     )
 
 

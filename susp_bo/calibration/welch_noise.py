@@ -17,7 +17,8 @@ noise share of band b's power:
     cov(e_b, e_b') / (P_b P_b') = R_bb' · [2 √(ρ_b ρ_b' (1 − ρ_b)(1 − ρ_b')) + ρ_b ρ_b'],
     R_bb' = 2 tr(Q_b Q_b') / (tr Q_b · tr Q_b'),
 
-exactly for Gaussian ``n``. R (F x F) depends only on the record length and the
+exactly for Gaussian ``n`` (a pure spectral line is not locally white: there the
+formula overestimates the variance, by up to ≈ 2x). R (F x F) depends only on the record length and the
 spectrum settings; R_bb = 1/K_b, K_b the effective number of averaged independent
 estimates in the band (about 5.7 for one 8 s Hann bin of a 30 s record, many more at
 high frequency). Log-amplitude is ``0.5 ln P``, so to second order the residual
@@ -104,7 +105,11 @@ def band_relative_covariance(
 
     Returns:
         R with R_bb = 1/K_b (K_b: effective number of independent averages in band b).
+
+    Raises:
+        ValueError: a record shorter than one Welch segment or f_max beyond Nyquist.
     """
+    settings.check_sample_rate(sample_rate_hz, int(n_samples) / float(sample_rate_hz))
     r = _band_relative_covariance(
         int(n_samples),
         float(sample_rate_hz),
