@@ -99,7 +99,7 @@ class PairedOutputError:
         return 2.0 * self.noise_m_s2**2 / self.sample_rate_hz
 
     def projection(self, run: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(R, P)`` of run ``run``: R (F x F) and the orthonormal basis P (F x F') of its range."""
+        """``(R, P)`` of run ``run``: R (F x F), P (F x F') an orthonormal basis of its range."""
         return _projection(self.spectrum, self.n_samples[run], self.sample_rate_hz)
 
 

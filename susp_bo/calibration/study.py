@@ -39,13 +39,13 @@ import numpy as np
 from susp_bo import __version__
 from susp_bo.calibration.evaluation import LikelihoodEvaluator, TrackRun
 from susp_bo.calibration.likelihood import OutputError, estimate_output_error
-from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.loop import (
     CalibrationResult,
     CalibrationSettings,
     IterationReport,
     calibrate,
 )
+from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
