@@ -20,8 +20,8 @@ noise share of band b's power:
 exactly for Gaussian ``n`` (a pure spectral line is not locally white: there the
 formula overestimates the variance, by up to ≈ 2x). R (F x F) depends only on the
 record length and the spectrum settings; R_bb = 1/K_b, K_b the effective number of
-averaged independent estimates in the band (about 5.7 for one 8 s Hann bin of a 30 s record, many more at
-high frequency). Log-amplitude is ``0.5 ln P``, so to second order the residual
+averaged independent estimates in the band (about 5.7 for one 8 s Hann bin of a
+30 s record, many more at high frequency). Log-amplitude is ``0.5 ln P``, so to second order the residual
 r = y − h has covariance ``Σ = R ∘ [...] / 4`` and mean ``−diag(Σ)`` (E ln(1 + ε) ≈
 −var ε / 2). Bands narrower than the Welch resolution share bins: R is then close
 to rank-deficient at low frequency, which is exactly why treating those bands as
