@@ -284,8 +284,9 @@ def laplace_reference(options: Options, record: dict[str, Any]) -> dict[str, Any
     Gauss–Newton with the paired model's whitening (sensor-noise covariance and profiled
     τ_c held fixed within an iteration), started at the best evaluated point, gives the
     mode and the Fisher covariance (JᵀJ)⁻¹ in the unit cube. The posterior is hundreds
-    to thousands of times narrower than C_w here, so the Gaussian is accurate; its
-    truth quantiles, z and 95 % intervals test the *error model* alone, separately from the surrogate search.
+    to thousands of times narrower than C_w here, so the Gaussian is accurate; its truth
+    quantiles, z and 95 % intervals test the *error model* alone, separately from the
+    surrogate search.
     """
     from susp_bo.calibration.paired_error import profile_model_error, whitened_residuals
     from susp_bo.calibration.welch_noise import noise_residual_moments

@@ -221,9 +221,7 @@ def paired_log_likelihood(
     else:
         sigma = np.asarray(error.model_error_sigma)
         if sigma.shape != (z.shape[-2],):
-            raise ValueError(
-                f"model_error_sigma: {sigma.size} values for {z.shape[-2]} channels"
-            )
+            raise ValueError(f"model_error_sigma: {sigma.size} values for {z.shape[-2]} channels")
         t = np.broadcast_to(sigma**2, z.shape[:-1])
         per_channel = _channel_log_likelihood(z * z, lam, t)
     value = np.sum(per_channel, axis=-1)

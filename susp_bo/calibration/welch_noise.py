@@ -17,15 +17,15 @@ noise share of band b's power:
     cov(e_b, e_b') / (P_b P_b') = R_bb' · [2 √(ρ_b ρ_b' (1 − ρ_b)(1 − ρ_b')) + ρ_b ρ_b'],
     R_bb' = 2 tr(Q_b Q_b') / (tr Q_b · tr Q_b'),
 
-exactly for Gaussian ``n`` (a pure spectral line is not locally white: there the
-formula overestimates the variance, by up to ≈ 2x). R (F x F) depends only on the
-record length and the spectrum settings; R_bb = 1/K_b, K_b the effective number of
-averaged independent estimates in the band (about 5.7 for one 8 s Hann bin of a
-30 s record, many more at high frequency). Log-amplitude is ``0.5 ln P``, so to second order the residual
-r = y − h has covariance ``Σ = R ∘ [...] / 4`` and mean ``−diag(Σ)`` (E ln(1 + ε) ≈
-−var ε / 2). Bands narrower than the Welch resolution share bins: R is then close
-to rank-deficient at low frequency, which is exactly why treating those bands as
-independent would count the same information several times.
+exactly for Gaussian ``n`` (a pure spectral line is not locally white: there the formula
+overestimates the variance, by up to ≈ 2x). R (F x F) depends only on the record length
+and the spectrum settings; R_bb = 1/K_b, K_b the effective number of averaged
+independent estimates in the band (about 5.7 for one 8 s Hann bin of a 30 s record, many
+more at high frequency). Log-amplitude is ``0.5 ln P``, so to second order the residual
+r = y − h has covariance ``Σ = R ∘ [...] / 4`` and mean ``−diag(Σ)`` (E ln(1 + ε) ≈ −var
+ε / 2). Bands narrower than the Welch resolution share bins: R is then close to rank-
+deficient at low frequency, which is exactly why treating those bands as independent
+would count the same information several times.
 
 R is computed exactly (no Monte Carlo): the rows of A_s are the real and imaginary
 parts of segment s's windowed, mean-removed DFT at every bin any band touches, so

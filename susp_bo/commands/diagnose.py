@@ -158,9 +158,9 @@ def run_diagnose(args: argparse.Namespace) -> int:
         measured=study.measured,
         tracks=study.tracks,
         # the workflow's detection scale is σ_B per channel (unchanged for paired studies)
-        error=study.error if isinstance(study.error, OutputError) else estimate_output_error(
-            study.measured
-        ),
+        error=study.error
+        if isinstance(study.error, OutputError)
+        else estimate_output_error(study.measured),
         noise_m_s2=study.noise_m_s2,
         reference=truth,
     )

@@ -88,6 +88,7 @@ def test_profile_matches_a_bounded_scalar_optimiser(rng: np.random.Generator) ->
     z = rng.normal(size=(3, 30)) * np.sqrt(lam) * np.array([[0.5], [1.0], [3.0]])
     best, t = profile_model_error(z, lam)
     for c in range(3):
+
         def neg(u: float, c: int = c) -> float:
             v = lam[c] + math.exp(u)
             return 0.5 * float(np.sum(np.log(2 * math.pi * v) + z[c] ** 2 / v))
@@ -128,8 +129,9 @@ def test_at_the_truth_the_fast_path_residuals_are_standard_and_log_l_as_expected
         s = np.array(response.accelerations_m_s2)
         n = np.random.default_rng([4, index, 2]).normal(0.0, noise, s.shape)
         measured.append(
-            log_amplitude_spectra(s + n, sim.sample_rate_hz, response.channels, spec.spectrum)
-            .log_amplitude
+            log_amplitude_spectra(
+                s + n, sim.sample_rate_hz, response.channels, spec.spectrum
+            ).log_amplitude
         )
         clean = log_amplitude_spectra(s, sim.sample_rate_hz, response.channels, spec.spectrum)
         simulated.append(with_noise_floor(clean.log_amplitude, noise, sim.sample_rate_hz))

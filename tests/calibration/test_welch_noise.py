@@ -48,9 +48,9 @@ def test_residual_moments_match_monte_carlo_of_signal_plus_noise() -> None:
     h = 0.5 * np.log(_band_power(signal[None])[0] + noise_psd)
     y = 0.5 * np.log(_band_power(signal[None] + rng.normal(0, sigma, size=(8000, N_SAMPLES))))
     r = y - h
-    mean, cov = noise_residual_moments(h, noise_psd, band_relative_covariance(
-        SETTINGS, N_SAMPLES, RATE_HZ
-    ))
+    mean, cov = noise_residual_moments(
+        h, noise_psd, band_relative_covariance(SETTINGS, N_SAMPLES, RATE_HZ)
+    )
     sd = np.sqrt(np.diag(cov))
     np.testing.assert_allclose(r.std(axis=0), sd, rtol=0.15)
     assert np.all(np.abs(r.mean(axis=0) - mean) < 0.2 * sd)
