@@ -470,9 +470,25 @@ def rank_figure(records: list[dict[str, Any]], names: tuple[str, ...], path: Pat
     cols = 4
     rows = math.ceil(len(panels) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    overlay = None
+    if all("laplace" in r for r in records) and not any(r.get("reference_only") for r in records):
+        overlay = np.array([r["laplace"]["quantile"] for r in records])
     for ax, name in zip(axes.ravel(), panels):
         data = quantiles.ravel() if name == "pooled" else quantiles[:, names.index(name)]
         ax.hist(data, bins=bins, range=(0, 1), color="tab:blue", edgecolor="white")
+        if overlay is not None:
+            ref = overlay.ravel() if name == "pooled" else overlay[:, names.index(name)]
+            ax.hist(
+                ref,
+                bins=bins,
+                range=(0, 1),
+                histtype="step",
+                color="k",
+                lw=1.5,
+                label="exact-likelihood Laplace",
+            )
+            if name == "pooled":
+                ax.legend(fontsize=6, loc="upper center")
         expect = data.size / bins
         band = stats.binom.interval(0.95, data.size, 1 / bins)
         ax.axhline(expect, color="k", lw=1)
@@ -483,9 +499,16 @@ def rank_figure(records: list[dict[str, Any]], names: tuple[str, ...], path: Pat
         ax.tick_params(labelsize=7)
     for ax in axes.ravel()[len(panels) :]:
         ax.axis("off")
+    kind = (
+        "exact-likelihood Laplace posterior"
+        if records[0].get("reference_only")
+        else "calibrate loop; black: exact-likelihood Laplace"
+        if overlay is not None
+        else "calibrate loop"
+    )
     fig.suptitle(
         f"SBC rank histograms: truth's posterior quantile, {n} experiments "
-        "(grey: 95 % band of a uniform histogram)",
+        f"({kind}; grey: 95 % band of a uniform histogram)",
         fontsize=9,
     )
     fig.tight_layout()
@@ -544,7 +567,7 @@ def main(argv: list[str] | None = None) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     config_path = out / "config.json"
     if config_path.exists():
-        stored = json.loads(config_path.read_text())
+        stored = {"reference_only": False, **json.loads(config_path.read_text())}
         if stored != dataclasses.asdict(options):
             parser.error(
                 f"--out: {out} holds an SBC run with other options {stored}; "
