@@ -16,15 +16,21 @@ track-to-track scatter is absent from r_i; what is left is
    over the decorrelated bands, variance τ_c² — profiled out (the maximum of the
    likelihood over τ_c ≥ 0 at each w) unless fixed in the study config.
 
-Measured on the linearised rig (``susp-bo`` fast path, demo truth, 18 runs, see
-the README): the paired residual at the true parameters has rms 0.003–0.08
-(log-amplitude) while the replicate-scatter σ_B is 0.14–0.23, so eq. 4's σ_B was
-8–30 x too large; standardised by the Welch noise model the residuals have mean
-square 0.98 (per frequand per channel 0.93–1.05), and after projection onto the
-range of R and whitening with the full covariance, 0.96–0.97 (χ² over 40
-dimensions: mean 38.6, variance 62 against 40, 80), at noise 0.005, 0.01 and
-0.05 m/s². Neighbouring low bands correlate up to 1.0 (as predicted), so they
-must not be counted as independent.
+Measured on the linearised rig (the fast path; demo truth; 18 runs = 6 seeds x 3;
+``python benchmarks/paired_residuals.py --noise 0.005 0.01 0.05 --seeds 6``; a 3-run
+check in ``tests/calibration/test_paired_error.py``): at the true parameters the
+paired residual has rms 0.003–0.08 (log-amplitude) while the replicate-scatter σ_B
+is 0.14–0.23, so eq. 4's σ_B is 8–30 x too large (mean of (r/σ_B)² = 0.007, 0.013,
+0.070 at noise 0.005, 0.01, 0.05 m/s²). Standardised by the Welch noise model
+(diagonal) the residuals have mean square 0.98 (0.95–1.01 in each quarter of the
+band, 0.93–1.05 per channel); after projection onto the range of R and whitening
+with the full covariance, 0.96–0.97 (χ² over 40 dimensions per run and channel: mean
+38.6, variance 62, against 40 and 80). Neighbouring low bands correlate up to 1.0,
+as predicted, so they must not be counted as independent. PyBullet data with the
+PyBullet model on the same tracks (demo seed 2024, noise 0.005): mean square 0.88.
+log L at the truth sits 0.8 sd (≈ 20 nats) above :func:`paired_expected_log_likelihood`
+on average (the model's variance is ≈ 3.5 % high at the lowest bands): conservative
+for an "optimum not reached" rule.
 
 The likelihood, per run i and channel c: the residual ``y − h − m`` (m the
 second-order bias) is projected onto the range of R_i (bands that are exact linear
