@@ -196,3 +196,11 @@ def test_direct_construction_is_validated_too() -> None:
     with pytest.raises(ValueError, match=r"mcmc\.chains: 0 is not allowed"):
         MCMCConfig(chains=0)
     assert StudyConfig(rig="r", data="d", out="o").data == Path("d")  # type: ignore[arg-type]
+
+
+def test_paired_config_refuses_a_correlation_length() -> None:
+    with pytest.raises(ValueError, match=r"correlation_length_hz.*unpaired"):
+        OutputErrorConfig(correlation_length_hz=0.5)
+    with pytest.raises(ValueError, match=r"output_error\.model"):
+        OutputErrorConfig(model="mixture")
+    assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"

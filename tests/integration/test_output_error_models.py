@@ -61,14 +61,6 @@ def test_a_store_of_the_other_model_is_refused(
         EvaluationStore(out / STORE_NAME, store_fingerprint(paired))
 
 
-def test_paired_config_refuses_a_correlation_length() -> None:
-    with pytest.raises(ValueError, match="correlation_length_hz.*unpaired"):
-        OutputErrorConfig(correlation_length_hz=0.5)
-    with pytest.raises(ValueError, match="output_error.model"):
-        OutputErrorConfig(model="mixture")
-    assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"
-
-
 def test_paired_log_l_is_highest_near_the_truth_on_pybullet_data(
     fast_rig: Path, fast_data: Path, tmp_path: Path
 ) -> None:
