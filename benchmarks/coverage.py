@@ -446,6 +446,23 @@ def aggregate(records: list[dict[str, Any]], names: tuple[str, ...]) -> dict[str
         },
         "per_parameter": per,
         "search": {
+            # "optimum not reached": best evaluated log L below the log L expected at the
+            # truth under B by more than 3 sd (likelihood.expected_log_likelihood_at_truth)
+            "best_below_expected_at_truth_by_3sd": int(
+                sum(
+                    r["best_log_l"]
+                    < r["expected_log_l_at_truth"][0] - 3 * r["expected_log_l_at_truth"][1]
+                    for r in records
+                    if "expected_log_l_at_truth" in r
+                    and math.isfinite(r["expected_log_l_at_truth"][0])
+                )
+            ),
+            "best_minus_expected_at_truth_in_sd": [
+                (r["best_log_l"] - r["expected_log_l_at_truth"][0])
+                / r["expected_log_l_at_truth"][1]
+                for r in records
+                if "expected_log_l_at_truth" in r and math.isfinite(r["expected_log_l_at_truth"][0])
+            ],
             "truth_beats_best_evaluated": int(np.sum(gap > 0)),
             "truth_minus_best_log_l_median": float(np.median(gap)),
             "truth_minus_best_log_l_max": float(np.max(gap)),
