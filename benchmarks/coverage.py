@@ -87,6 +87,7 @@ class Options:
     budget: int | None
     smoke: bool
     reference_only: bool = False
+    zoom: bool = False
 
 
 def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
@@ -236,7 +237,41 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
             flush=True,
         )
 
-    result = calibrate(problem, bounds, names, settings, progress=False, on_iteration=report)
+    zoom_box = None
+    if options.zoom:
+        # prototype of a two-stage search (not the tool's loop): half the budget on C_w,
+        # then the other half on a box around the first stage's posterior (uniform prior
+        # truncated to the box: valid while the box holds the posterior mass)
+        budget = settings.max_evaluations or 200
+        first = calibrate(
+            problem,
+            bounds,
+            names,
+            dataclasses.replace(settings, max_evaluations=budget // 2, check_points=0),
+            progress=False,
+            on_iteration=report,
+        )
+        span = bounds[1] - bounds[0]
+        best = first.X[int(np.nanargmax(first.y))]
+        centre = first.summary.mean
+        half = np.maximum.reduce([0.02 * span, 5 * np.abs(best - centre), 10 * first.summary.sd])
+        zoom_box = np.stack(
+            [np.maximum(bounds[0], best - half), np.minimum(bounds[1], best + half)]
+        )
+        settings = dataclasses.replace(
+            settings,
+            max_evaluations=budget - budget // 2,
+            initial_design_size=min(30, budget - budget // 2 - 2),
+            seed=settings.seed + 1,
+        )
+    result = calibrate(
+        problem,
+        bounds if zoom_box is None else zoom_box,
+        names,
+        settings,
+        progress=False,
+        on_iteration=report,
+    )
     draws = result.draws.reshape(-1, len(names))
     quantile = np.mean(draws < truth[None, :], axis=0)
     mean, sd = draws.mean(axis=0), draws.std(axis=0)
@@ -267,7 +302,12 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         "r_hat_max": float(np.max(result.summary.r_hat)),
         "ess_min": float(np.min(result.summary.ess)),
         "check": None if result.check is None else result.check.verdict,
-        "n_evaluations": int(result.n_evaluations),
+        "n_evaluations": int(result.n_evaluations)
+        + (0 if zoom_box is None else int(first.n_evaluations)),
+        "zoom_box": None if zoom_box is None else zoom_box.tolist(),
+        "truth_in_zoom_box": None
+        if zoom_box is None
+        else bool(np.all((zoom_box[0] <= truth) & (truth <= zoom_box[1]))),
         "stop_reason": result.stop_reason,
         "error": (
             {"model": "paired", "noise_m_s2": options.noise}
@@ -558,6 +598,12 @@ def main(argv: list[str] | None = None) -> int:
         "truth (tests the error model alone, about a minute an experiment)",
     )
     parser.add_argument(
+        "--zoom",
+        action="store_true",
+        help="prototype two-stage search: half the budget on C_w, half on a box around "
+        "the first posterior (evidence for the loop, not the tool's method)",
+    )
+    parser.add_argument(
         "--aggregate-only", action="store_true", help="figures of the finished experiments only"
     )
     args = parser.parse_args(argv)
@@ -577,14 +623,21 @@ def main(argv: list[str] | None = None) -> int:
     if args.reference_only and args.error != "paired":
         parser.error("--reference-only: the Laplace reference needs --error paired")
     options = Options(
-        args.nu, args.noise, args.seed, args.error, args.budget, args.smoke, args.reference_only
+        args.nu,
+        args.noise,
+        args.seed,
+        args.error,
+        args.budget,
+        args.smoke,
+        args.reference_only,
+        args.zoom,
     )
     out: Path = args.out
     folder = out / "experiments"
     folder.mkdir(parents=True, exist_ok=True)
     config_path = out / "config.json"
     if config_path.exists():
-        stored = {"reference_only": False, **json.loads(config_path.read_text())}
+        stored = {"reference_only": False, "zoom": False, **json.loads(config_path.read_text())}
         if stored != dataclasses.asdict(options):
             parser.error(
                 f"--out: {out} holds an SBC run with other options {stored}; "
