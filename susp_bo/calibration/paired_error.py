@@ -44,7 +44,7 @@ t = τ_c². With no sensor noise the inner maximum is the Student-t/Jeffreys for
 −(n_c/2) ln SS_c + const (profile and marginal agree up to a constant). Far from
 the optimum the profiled τ_c absorbs the misfit, so log L falls like
 −(n/2) ln(misfit) rather than quadratically (a range the surrogate can fit).
-Deterministic and float64.
+Deterministic and float64; rounded to 1e-6 nats (see ``_ROUND_DECIMALS``).
 """
 
 from __future__ import annotations
@@ -54,12 +54,19 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from susp_bo.calibration.welch_noise import band_relative_covariance, noise_residual_moments
 from susp_bo.rig.spectra import SpectrumSettings
 
 _RANK_TOLERANCE = 1e-8  # eigenvalues of R below this x the largest are treated as 0
 _GOLDEN_STEPS = 90
+_ROUND_DECIMALS = 6
+"""log L is rounded to 1e-6 nats: LAPACK/BLAS give last-bit differences between thread
+counts and CPUs (measured: 1 vs 2 OpenBLAS threads changed 5 of 5 values in the last
+1–4 bits, |log L| ≈ 4600); rounded, two machines differ only when a value falls within
+≈1e-12 nats of a rounding boundary (≈1e-6 chance per value), and the surrogate, which
+is refitted on these values, sees the same numbers."""
 
 
 @dataclass(frozen=True)
@@ -107,6 +114,12 @@ class PairedOutputError:
     def projection(self, run: int) -> tuple[np.ndarray, np.ndarray]:
         """``(R, P)`` of run ``run``: R (F x F), P (F x F') an orthonormal basis of its range."""
         return _projection(self.spectrum, self.n_samples[run], self.sample_rate_hz)
+
+
+@lru_cache(maxsize=1)
+def _blas_controller() -> ThreadpoolController:
+    """The loaded BLAS libraries, found once (a fresh lookup costs milliseconds)."""
+    return ThreadpoolController()
 
 
 @lru_cache(maxsize=32)
@@ -219,9 +232,11 @@ def paired_log_likelihood(
         error: the paired error model.
 
     Returns:
-        log L as a float, or (b,) for batched ``simulated``.
+        log L as a float, or (b,) for batched ``simulated``; rounded to 1e-6 nats and
+        computed with one BLAS thread, so that it does not depend on the thread count.
     """
-    z, lam = whitened_residuals(measured, simulated, error)
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        z, lam = whitened_residuals(measured, simulated, error)
     if error.model_error_sigma is None:
         per_channel, _ = profile_model_error(z, lam)
     else:
@@ -230,7 +245,7 @@ def paired_log_likelihood(
             raise ValueError(f"model_error_sigma: {sigma.size} values for {z.shape[-2]} channels")
         t = np.broadcast_to(sigma**2, z.shape[:-1])
         per_channel = _channel_log_likelihood(z * z, lam, t)
-    value = np.sum(per_channel, axis=-1)
+    value = np.round(np.sum(per_channel, axis=-1), _ROUND_DECIMALS)
     return float(value) if np.ndim(value) == 0 else value
 
 

@@ -43,7 +43,7 @@ def test_fixed_model_error_without_noise_is_the_gaussian_density_of_the_projecte
         for i in range(2)
         for c, s in enumerate((0.1, 0.3))
     )
-    assert paired_log_likelihood(y, h, error) == pytest.approx(expected, rel=1e-12)
+    assert paired_log_likelihood(y, h, error) == pytest.approx(expected, abs=1e-6)  # rounded
 
 
 def test_profiled_model_error_without_noise_is_the_closed_form_profile(
@@ -57,7 +57,7 @@ def test_profiled_model_error_without_noise_is_the_closed_form_profile(
     n = z.shape[-1]
     ss = np.sum(z**2, axis=-1)
     expected = np.sum(-0.5 * n * (np.log(2 * math.pi * ss / n) + 1.0))
-    assert paired_log_likelihood(y, h, error) == pytest.approx(expected, rel=1e-10)
+    assert paired_log_likelihood(y, h, error) == pytest.approx(expected, abs=1e-6)
 
 
 def test_linear_gaussian_toy_has_the_closed_form_log_likelihood_differences(
@@ -80,7 +80,7 @@ def test_linear_gaussian_toy_has_the_closed_form_log_likelihood_differences(
     got = paired_log_likelihood(y, a + (design @ w1)[None, None], error) - paired_log_likelihood(
         y, a + (design @ w2)[None, None], error
     )
-    assert got == pytest.approx(exact(w1) - exact(w2), rel=1e-10)
+    assert got == pytest.approx(exact(w1) - exact(w2), abs=2e-6)
 
 
 def test_profile_matches_a_bounded_scalar_optimiser(rng: np.random.Generator) -> None:
@@ -97,6 +97,19 @@ def test_profile_matches_a_bounded_scalar_optimiser(rng: np.random.Generator) ->
         at_zero = -neg(-1e9)
         assert best[c] == pytest.approx(max(-ref.fun, at_zero), abs=1e-6)
     assert t[0] == 0.0 and t[2] > 0.0  # too little scatter: τ = 0; too much: τ > 0
+
+
+def test_log_l_does_not_depend_on_the_blas_thread_count(rng: np.random.Generator) -> None:
+    from threadpoolctl import threadpool_limits
+
+    error = _error(2, noise=0.01)
+    y = rng.normal(size=(2, 3, 12)) - 3.0
+    batch = y[None] + 0.05 * rng.normal(size=(6, 2, 3, 12))
+    with threadpool_limits(limits=2, user_api="blas"):
+        two = paired_log_likelihood(y, batch, error)
+    one = paired_log_likelihood(y, batch, error)
+    np.testing.assert_array_equal(one, two)
+    np.testing.assert_array_equal(one, np.round(one, 6))
 
 
 def test_batched_equals_loop_and_bad_shapes_are_refused(rng: np.random.Generator) -> None:
