@@ -364,12 +364,11 @@ def laplace_reference(options: Options, record: dict[str, Any]) -> dict[str, Any
     def jacobian(u: np.ndarray, maps: list[np.ndarray], step: float = 1e-5) -> np.ndarray:
         columns = []
         for k in range(u.size):
-            e = np.zeros(u.size)
-            e[k] = step
-            dh = (
-                problem.simulated(lower + (u + e) * span)
-                - problem.simulated(lower + (u - e) * span)
-            ) / (2 * step)
+            up, down = u.copy(), u.copy()
+            up[k], down[k] = min(u[k] + step, 1.0), max(u[k] - step, 0.0)  # inside C_w
+            dh = (problem.simulated(lower + up * span) - problem.simulated(lower + down * span)) / (
+                up[k] - down[k]
+            )
             columns.append(
                 np.concatenate([(m @ dh[i][..., None]).ravel() for i, m in enumerate(maps)])
             )
@@ -386,6 +385,7 @@ def laplace_reference(options: Options, record: dict[str, Any]) -> dict[str, Any
         jac = jacobian(u, maps)
         info = jac.T @ jac
         step = np.linalg.solve(info, jac.T @ whitened(h, maps))
+        step = np.clip(u + step, 0.0, 1.0) - u  # projected step: the prior is C_w
         for _ in range(30):
             h_new = problem.simulated(lower + (u + step) * span)
             value_new = log_l(h_new)
@@ -395,7 +395,7 @@ def laplace_reference(options: Options, record: dict[str, Any]) -> dict[str, Any
         else:
             break
         u, h, value = u + step, h_new, value_new
-        if np.all(np.abs(step) < 0.01 * np.sqrt(np.diag(np.linalg.inv(info)))):
+        if np.all(np.abs(step) < 0.01 * np.sqrt(np.diag(np.linalg.inv(info)))):  # converged
             break
     maps = whitening(h)
     jac = jacobian(u, maps)
