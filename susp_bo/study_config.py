@@ -37,8 +37,9 @@ Example (also in notes/study_example.toml)::
     warmup = 500            # adaptive warm-up steps per chain
 
     [output_error]
+    model = "unpaired"      # eq. 4 mixture (default); "paired": each run vs its own track
     sigma = "estimate"      # or one σ for all channels, or a table {channel = σ}
-    correlation_length_hz = 0.5   # optional frequency correlation length (Hz)
+    # correlation_length_hz = 0.5   # unpaired only: frequency correlation length (Hz)
     sensor_noise_m_s2 = 0.005     # accelerometer noise floor; omit = from the runs' metadata
 """
 
@@ -177,10 +178,20 @@ class OutputErrorConfig:
     """Output prediction error B (eq. 4).
 
     Attributes:
+        model: ``"unpaired"`` (default: eq. 4's mixture of every run with every track,
+            σ_B from the scatter between runs) or ``"paired"`` (run i is compared with
+            the simulation on its own measured track, B = sensor noise of the Welch
+            spectra + per-channel model error, :mod:`susp_bo.calibration.paired_error`).
+            Paired is the right model when the tracks are measured, but its posterior is
+            10⁻⁴–10⁻³ of C_w wide and the surrogate search does not resolve it at the
+            usual budgets yet (README, "Which output-error model applies"), so it is opt-in.
         sigma: ``"estimate"`` (from the data), one σ for every channel, or a
-            mapping channel name → σ (log-amplitude units, > 0).
+            mapping channel name → σ (log-amplitude units, > 0). Paired: the
+            model-error sd τ_c, "estimate" = profiled at every w; unpaired: σ_B,
+            "estimate" = from the replicate scatter of the runs.
         correlation_length_hz: frequency correlation length of B (Hz, > 0), or
-            None for independent frequencies.
+            None for independent frequencies (unpaired model only; the paired model
+            takes the band correlation from the Welch settings).
         sensor_noise_m_s2: white noise of the accelerometers (m/s² rms, >= 0), added
             to the simulated spectra as a noise floor before the comparison; None
             takes ``noise_m_s2`` from the runs' metadata (synthetic runs record it),
@@ -188,11 +199,23 @@ class OutputErrorConfig:
     """
 
     section: ClassVar[str] = "output_error"
+    model: str = "unpaired"
     sigma: str | float | Mapping[str, float] = "estimate"
     correlation_length_hz: float | None = None
     sensor_noise_m_s2: float | None = None
 
     def __post_init__(self) -> None:
+        if self.model not in ("paired", "unpaired"):
+            raise ValueError(
+                f"output_error.model: {self.model!r} is not allowed; expected 'paired' (each "
+                "run with its own measured track) or 'unpaired' (track statistics only)"
+            )
+        if self.model == "paired" and self.correlation_length_hz is not None:
+            raise ValueError(
+                f"output_error.correlation_length_hz: {self.correlation_length_hz!r} is not "
+                "allowed with model = 'paired' (its band correlation comes from the Welch "
+                "settings); remove it or set model = 'unpaired'"
+            )
         if isinstance(self.sigma, Mapping):
             if not self.sigma:
                 raise ValueError("output_error.sigma: {} is not allowed; name at least a channel")

@@ -57,9 +57,7 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         seeds=SeedsConfig(calibration=0, mcmc=1),
         executor=ExecutorConfig(workers=8),
         mcmc=MCMCConfig(chains=512, draws=2000, warmup=500),
-        output_error=OutputErrorConfig(
-            sigma="estimate", correlation_length_hz=0.5, sensor_noise_m_s2=0.005
-        ),
+        output_error=OutputErrorConfig(model="paired", sigma="estimate", sensor_noise_m_s2=0.005),
     )
 
 
@@ -198,3 +196,11 @@ def test_direct_construction_is_validated_too() -> None:
     with pytest.raises(ValueError, match=r"mcmc\.chains: 0 is not allowed"):
         MCMCConfig(chains=0)
     assert StudyConfig(rig="r", data="d", out="o").data == Path("d")  # type: ignore[arg-type]
+
+
+def test_paired_config_refuses_a_correlation_length() -> None:
+    with pytest.raises(ValueError, match=r"correlation_length_hz.*unpaired"):
+        OutputErrorConfig(correlation_length_hz=0.5)
+    with pytest.raises(ValueError, match=r"output_error\.model"):
+        OutputErrorConfig(model="mixture")
+    assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from susp_bo.calibration.likelihood import OutputError, log_likelihood
+from susp_bo.calibration.paired_error import PairedOutputError, paired_log_likelihood
 from susp_bo.execution import TaskOutcome, run_tasks
 from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.simulator import Rig
@@ -98,7 +99,8 @@ class LikelihoodEvaluator:
         names: calibration parameter names, in the order of the columns of W.
         tracks: the μ measured track stretches x_j.
         measured: (ν x C x F) measured log-amplitude spectra.
-        error: the output error model B.
+        error: the output error model B: paired (run i against track i only) or the
+            unpaired mixture of eq. 4.
         store: where every evaluation is recorded and looked up.
         executor: where simulations run.
         frequencies_hz: (F,) grid of the spectra.
@@ -114,7 +116,7 @@ class LikelihoodEvaluator:
         names: Sequence[str],
         tracks: Sequence[TrackRun],
         measured: np.ndarray,
-        error: OutputError,
+        error: OutputError | PairedOutputError,
         store: EvaluationStore,
         executor: Executor,
         frequencies_hz: np.ndarray,
@@ -207,7 +209,9 @@ class LikelihoodEvaluator:
             simulated = with_noise_floor(
                 np.stack([np.asarray(s) for s in spectra]), self.noise_m_s2, self.sample_rate_hz
             )
-            values.append(
-                float(log_likelihood(self.measured, simulated, self.error, self.frequencies_hz))
-            )
+            if isinstance(self.error, PairedOutputError):
+                value = paired_log_likelihood(self.measured, simulated, self.error)
+            else:
+                value = log_likelihood(self.measured, simulated, self.error, self.frequencies_hz)
+            values.append(float(value))
         return np.asarray(values, dtype=np.float64)

@@ -1,4 +1,10 @@
-"""Likelihood of measured spectra given simulated ones (eq. 4 of the paper).
+"""Likelihood of measured spectra given simulated ones (eq. 4 of the paper): the unpaired model.
+
+This is the model for runs whose track is known only by its statistics (the
+simulated tracks x_j are other realizations than the measured ones). When every
+run comes with its own measured track (the default of a study), the paired model
+of :mod:`susp_bo.calibration.paired_error` applies instead; the README section
+"Which output-error model applies" says when to use which.
 
     log L(w) = Σ_i log( (1/μ) Σ_j p_B(y_exp,i − h(x_j, w)) )
 
@@ -35,6 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import logsumexp
+
+from susp_bo.calibration.paired_error import PairedOutputError, paired_expected_log_likelihood
 
 
 @dataclass(frozen=True)
@@ -213,3 +221,39 @@ def estimate_output_error(
         rho = float(np.clip(lag1 / lag0 * n_freq / (n_freq - 1), 1e-3, 0.999))
         ell = float(np.mean(np.diff(f))) / -math.log(rho)
     return OutputError(tuple(float(s) for s in sigma), ell)
+
+
+def expected_log_likelihood_at_truth(
+    error: OutputError | PairedOutputError,
+    measured: np.ndarray,
+    frequencies_hz: np.ndarray | None = None,
+) -> tuple[float, float]:
+    """Mean and sd (nats) of log L at the true parameters, as the error model B predicts.
+
+    For the rule "the optimum was not reached": a best evaluated log L far below
+    ``mean − 3 sd`` means the search missed the region of the truth.
+
+    Args:
+        error: the study's output error model.
+        measured: (ν x C x F) measured log-amplitude spectra.
+        frequencies_hz: (F,) grid, needed for an unpaired model with a correlation length.
+
+    Returns:
+        ``(mean, sd)``. Paired: :func:`~.paired_error.paired_expected_log_likelihood`
+        (exact to second order when the simulator is exact; nan when there is no sensor
+        noise, since then only the profiled model error is left). Unpaired: every pair
+        residual y_i − h_j ~ N(0, Σ_B) gives log p_B = −½ (ln |2π Σ_B| + χ²_{CF}), so
+        mean −½ ν (ln |2π Σ_B| + C F) and sd √(ν C F / 2); the mixture over the μ tracks
+        adds at most ln μ per run (Jensen), so this mean is a lower bound to within that.
+    """
+    if isinstance(error, PairedOutputError):
+        return paired_expected_log_likelihood(error, measured)
+    y = _check_spectra("measured", measured, error.n_channels)
+    if y.ndim != 3:
+        raise ValueError(f"measured: shape {y.shape}, expected (ν x C x F)")
+    nu, c, f = y.shape
+    chol = error.whitening(frequencies_hz, f)
+    log_det = 2.0 * f * np.sum(np.log(error.sigma)) + c * 2.0 * np.sum(np.log(np.diag(chol)))
+    n = c * f
+    mean = -0.5 * nu * (log_det + n * math.log(2.0 * math.pi) + n)
+    return float(mean), math.sqrt(nu * n / 2.0)

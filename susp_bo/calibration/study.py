@@ -7,10 +7,12 @@ against the rig's channels and band, the output folder and its store), then:
 1. the measured spectra y_exp,i (ν x C x F) and the track stretches x_j are
    taken from the runs (μ = ν: each measured run's geometry and speed is one
    track realization);
-2. the output error B is set: by default σ_B per channel is estimated from the
-   scatter of the measured spectra between runs (track-to-track variability
-   plus sensor noise, the part of the data the simulator cannot reproduce
-   without knowing the track exactly), or fixed in the config;
+2. the output error B is set (``[output_error] model``): ``paired`` (default:
+   every run has its own measured track, so run i is compared with h(x_i, w)
+   only; B = the Welch statistics of the sensor noise + a per-channel model
+   error, profiled or fixed, :mod:`susp_bo.calibration.paired_error`) or
+   ``unpaired`` (eq. 4's mixture over tracks; σ_B per channel from the scatter
+   of the measured spectra between runs, or fixed in the config);
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
    simulator evaluation going through the evaluation store and the executor;
 4. ``result.json``, the config used, the figures and the log are written, with
@@ -32,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import sys
 import time
 from concurrent.futures import Executor
@@ -43,13 +46,20 @@ import numpy as np
 
 from susp_bo import __version__
 from susp_bo.calibration.evaluation import LikelihoodEvaluator, TrackRun
-from susp_bo.calibration.likelihood import OutputError, estimate_output_error
+from susp_bo.calibration.likelihood import (
+    OutputError,
+    estimate_output_error,
+)
+from susp_bo.calibration.likelihood import (
+    expected_log_likelihood_at_truth as expected_at_truth_under,
+)
 from susp_bo.calibration.loop import (
     CalibrationResult,
     CalibrationSettings,
     IterationReport,
     calibrate,
 )
+from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.reliability import budget_message, budget_requirement
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
@@ -86,7 +96,7 @@ class PreparedStudy:
         runs: the ν measured runs (channels in the rig's order).
         measured: (ν x C x F) measured log-amplitude spectra.
         tracks: the μ track stretches.
-        error: the output error model B.
+        error: the output error model B (paired or unpaired).
         noise_m_s2: accelerometer noise (m/s² rms) added to simulated spectra as a floor.
         reference: (q,) true parameters when the data are synthetic, else None.
     """
@@ -98,7 +108,7 @@ class PreparedStudy:
     runs: tuple[MeasuredRun, ...]
     measured: np.ndarray
     tracks: tuple[TrackRun, ...]
-    error: OutputError
+    error: OutputError | PairedOutputError
     noise_m_s2: float
     reference: np.ndarray | None
 
@@ -115,10 +125,33 @@ class PreparedStudy:
 
 
 def _output_error(
-    config: StudyConfig, measured: np.ndarray, channels: tuple[str, ...]
-) -> OutputError:
+    config: StudyConfig,
+    measured: np.ndarray,
+    channels: tuple[str, ...],
+    runs: tuple[MeasuredRun, ...] = (),
+    spec: RigSpec | None = None,
+    noise_m_s2: float = 0.0,
+) -> OutputError | PairedOutputError:
     sigma = config.output_error.sigma
     ell = config.output_error.correlation_length_hz
+    if config.output_error.model == "paired":
+        if spec is None or not runs:
+            raise StudyError("output_error.model: 'paired' needs the runs and the rig")
+        fixed = None
+        if isinstance(sigma, int | float):
+            fixed = tuple(float(sigma) for _ in channels)
+        elif sigma != "estimate":
+            missing = [c for c in channels if c not in sigma]
+            if missing:
+                raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
+            fixed = tuple(float(sigma[c]) for c in channels)
+        return PairedOutputError(
+            noise_m_s2,
+            runs[0].sample_rate_hz,
+            tuple(int(run.accelerations_m_s2.shape[-1]) for run in runs),
+            spec.spectrum,
+            fixed,
+        )
     if sigma == "estimate":
         if measured.shape[0] < 2:
             raise StudyError(
@@ -321,6 +354,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     all_names = spec.calibration_names
     columns = [all_names.index(name) for name in names]
     bounds = spec.calibration_bounds[:, columns]
+    noise = _sensor_noise(config, runs)
     return PreparedStudy(
         config=config,
         spec=spec,
@@ -329,8 +363,8 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         runs=runs,
         measured=measured,
         tracks=tracks,
-        error=_output_error(config, measured, spec.channels),
-        noise_m_s2=_sensor_noise(config, runs),
+        error=_output_error(config, measured, spec.channels, runs, spec, noise),
+        noise_m_s2=noise,
         reference=_reference(runs, tuple(names)),
     )
 
@@ -344,6 +378,7 @@ def store_fingerprint(
         json.dumps([t.track_id for t in study.tracks]),
         names or study.names,
         output_error=json.dumps(dataclasses.asdict(study.error)),
+        output_error_model=study.config.output_error.model,
         sensor_noise_m_s2=repr(study.noise_m_s2),
     )
 
@@ -394,9 +429,13 @@ def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float
     At the truth the residuals y_i − h(x_i, w) are draws of B, so this expectation needs
     B only, not the truth itself: it applies to measured data too. None until the
     output-error model provides it (wire it here); the verdict then also checks the best
-    log L against it (``not_converged``).
+    log L against it (``not_converged``). None when the model cannot give it (no
+    sensor noise with the paired model).
     """
-    return None
+    mean, sd = expected_at_truth_under(study.error, study.measured, study.frequencies_hz)
+    if not (math.isfinite(mean) and math.isfinite(sd)):
+        return None
+    return float(mean), float(sd)
 
 
 def _logger(out: Path) -> logging.Logger:
@@ -408,6 +447,32 @@ def _logger(out: Path) -> logging.Logger:
         handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
         logger.addHandler(handler)
     return logger
+
+
+def output_error_payload(study: PreparedStudy) -> dict[str, Any]:
+    """``result.json`` ``output_error``: which model B is, and its values.
+
+    ``model`` is ``paired`` or ``unpaired``; ``sigma`` is σ_B per channel (unpaired) or
+    the fixed model-error sd τ_c (paired; None = profiled at every w).
+    """
+    error = study.error
+    if isinstance(error, PairedOutputError):
+        return {
+            "model": "paired",
+            "channels": list(study.spec.channels),
+            "sigma": None if error.model_error_sigma is None else list(error.model_error_sigma),
+            "model_error": "profiled" if error.model_error_sigma is None else "fixed",
+            "sensor_noise": "welch",
+            "correlation_length_hz": None,
+            "sensor_noise_m_s2": study.noise_m_s2,
+        }
+    return {
+        "model": "unpaired",
+        "channels": list(study.spec.channels),
+        "sigma": list(error.sigma),
+        "correlation_length_hz": error.correlation_length_hz,
+        "sensor_noise_m_s2": study.noise_m_s2,
+    }
 
 
 def result_payload(
@@ -437,12 +502,7 @@ def result_payload(
         "surrogate_check": None if result.check is None else result.check.to_dict(result.bounds),
         "reliability": None if result.reliability is None else result.reliability.to_dict(),
         "reference": None if study.reference is None else study.reference.tolist(),
-        "output_error": {
-            "channels": list(study.spec.channels),
-            "sigma": list(study.error.sigma),
-            "correlation_length_hz": study.error.correlation_length_hz,
-            "sensor_noise_m_s2": study.noise_m_s2,
-        },
+        "output_error": output_error_payload(study),
         "rig": study.spec.name,
         "data": str(study.config.data),
         "nu": len(study.runs),

@@ -126,6 +126,7 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
 
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run the workflow on ``args.result_dir`` and write ``discrepancy.json`` and figures."""
+    from susp_bo.calibration.likelihood import OutputError, estimate_output_error
     from susp_bo.calibration.study import RESULT_NAME, StudyError, prepare_study
     from susp_bo.discrepancy.figures import write_figures
     from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator, make_simulator
@@ -158,7 +159,10 @@ def run_diagnose(args: argparse.Namespace) -> int:
         bounds=study.bounds,
         measured=study.measured,
         tracks=study.tracks,
-        error=study.error,
+        # the workflow's detection scale is σ_B per channel (unchanged for paired studies)
+        error=study.error
+        if isinstance(study.error, OutputError)
+        else estimate_output_error(study.measured),
         noise_m_s2=study.noise_m_s2,
         reference=truth,
     )

@@ -109,3 +109,25 @@ def test_shape_and_value_errors(rng: np.random.Generator) -> None:
         log_likelihood(rng.normal(size=(2, 2, 4)), bad, error)
     with pytest.raises(ValueError, match="frequencies_hz"):
         log_likelihood(bad[1:], bad[1:], OutputError((0.1, 0.2), 1.0))
+
+
+def test_expected_log_likelihood_at_truth_unpaired_matches_monte_carlo(
+    rng: np.random.Generator,
+) -> None:
+    """ν = μ = 1, y − h ~ N(0, σ²) per channel: log L is exactly −½(ln|2πΣ| + χ²_CF)."""
+    from susp_bo.calibration.likelihood import expected_log_likelihood_at_truth
+
+    error = OutputError((0.1, 0.4))
+    measured = rng.normal(size=(1, 2, 30))
+    mean, sd = expected_log_likelihood_at_truth(error, measured)
+    draws = [
+        log_likelihood(
+            measured,
+            measured - np.array([0.1, 0.4])[None, :, None] * rng.normal(size=(1, 2, 30)),
+            error,
+        )
+        for _ in range(4000)
+    ]
+    # 4000 draws: the sample mean's sd is sd / 63; the sample sd's relative sd ≈ 1.1 %
+    assert np.mean(draws) == pytest.approx(mean, abs=5 * sd / math.sqrt(4000))
+    assert np.std(draws) == pytest.approx(sd, rel=0.06)

@@ -1,0 +1,766 @@
+"""Simulation-based calibration (SBC) of the whole calibration on the linearised fast path.
+
+Each experiment e:
+
+1. draws a truth w_e uniformly on C_w of the demo's q = 7 parameters (the rig's bounds);
+2. synthesises ν measured runs the way ``susp-bo synth`` does, with the linearised rig
+   (:meth:`susp_bo.rig.linear.LinearisedRig.response`) on seeded German-PSD tracks,
+   white sensor noise of ``--noise`` m/s² added to the accelerations;
+3. calibrates with the real loop (:func:`susp_bo.calibration.loop.calibrate`: design,
+   GPyTorch kriging, BoTorch qLogEI, refinement, check, MH on the surrogate) with the
+   demo's :class:`CalibrationSettings` (budget included), log L from the study's error
+   model (``--error paired``, default, or ``unpaired``: eq. 4 with σ_B from the replicate
+   scatter, the model before issue 10) and the linearised rig on each run's own track;
+4. records per parameter the truth's posterior quantile (fraction of draws below it),
+   z = (mean − truth)/sd, whether the paper's 95 % interval holds the truth, and the
+   truth's log L against the best evaluated one (did the search reach the maximum?).
+
+If the model and the inference are right, the quantiles are uniform (pooled KS test),
+z has rms ≈ 1 and the intervals hold the truth in a binomial 95 % range around 95 %.
+Each finished experiment is written to ``OUT/experiments/NNNN.json`` at once, so a rerun
+with the same ``--out`` continues where a killed run stopped (the options must match:
+they are checked against ``OUT/config.json``). Outputs: ``OUT/coverage.json`` (every
+figure), ``OUT/ranks.png`` (rank histograms per parameter and pooled); progress on stderr.
+
+Example (the report's runs)::
+
+    python benchmarks/coverage.py --experiments 40 --nu 3 --noise 0.01 --out cov_nu3
+    python benchmarks/coverage.py --experiments 40 --nu 2 --noise 0.01 --out cov_nu2
+    python benchmarks/coverage.py --experiments 40 --nu 3 --noise 0.05 --out cov_n05
+
+``--reference-only`` replaces step 3 by the exact-likelihood Laplace posterior (Gauss–
+Newton from the truth; about a minute an experiment): it tests the error model B
+alone. ``--laplace`` adds that reference to every finished loop experiment.
+
+Measured (issue 10 session, 2 shared cores, seed 0, paired model, demo settings):
+
+- error model alone (``--reference-only``): ν = 3, noise 0.01, 40 experiments: pooled
+  KS p 0.0045, z rms 0.99, 262/280 inside (binomial [258, 273]); per parameter z rms
+  0.88–0.98 except secondary lateral damping 1.32 (33/40 inside: too few), KS p
+  0.034 for secondary vertical damping (ranks skewed high). ν = 2, 20 experiments: KS
+  p 0.33, z rms 1.04, 130/140 inside [128, 138], per parameter z rms 0.78–1.31.
+  Noise 0.05, 20 experiments: KS p 0.059, z rms 1.02, 131/140, secondary lateral
+  damping z rms 1.37 (16/20). Posterior sd: 5e-5 to 3e-3 of each range at noise 0.01.
+- the calibrate loop (default), ν = 3, noise 0.01: 12 experiments only (the run was
+  stopped at the session's deadline; 2–24 min each under load, median 3 min): 51/84
+  intervals hold the truth (binomial [76, 83]), pooled KS p 1e-4, z rms 4.2 (2.0–5.9
+  per parameter); the truth's log L beat every evaluated point in 11/12 runs (median
+  by 29 nats, at most 127); the surrogate check said underconfident in 11/12,
+  overconfident in 1; max R-hat 15 and 59 in two runs. On the same 12 data sets the
+  exact-likelihood Laplace posterior: 80/84 inside, z rms 0.96, KS p 0.38; the loop's
+  posterior sd is 3.1x / 3.6x the exact one for the primary stiffness / damping, and
+  its centre is off by several exact sd: the gap is the surrogate search, not B.
+  ν = 2 and noise 0.05 with the loop: not run (no time on 2 shared cores).
+  ``--zoom`` (half the budget on a box around the first posterior), 1 experiment: the
+  box missed the truth (secondary vertical stiffness at 1.4 box widths), 2/7 inside.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # small matrices: threads only contend (2 shared cores)
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy import stats  # noqa: E402
+
+from susp_bo.calibration.evaluation import TrackRun  # noqa: E402
+from susp_bo.calibration.likelihood import (  # noqa: E402
+    OutputError,
+    estimate_output_error,
+    log_likelihood,
+)
+from susp_bo.calibration.loop import (  # noqa: E402
+    CalibrationSettings,
+    IterationReport,
+    calibrate,
+)
+from susp_bo.calibration.paired_error import (  # noqa: E402
+    PairedOutputError,
+    paired_expected_log_likelihood,
+    paired_log_likelihood,
+)
+from susp_bo.calibration.study import calibration_settings  # noqa: E402
+from susp_bo.commands.demo import DEMO_RIG, demo_config  # noqa: E402
+from susp_bo.data.synthetic import track_seed  # noqa: E402
+from susp_bo.discrepancy.problem import LinearSimulator  # noqa: E402
+from susp_bo.rig.linear import LinearisedRig  # noqa: E402
+from susp_bo.rig.simulator import synthetic_track  # noqa: E402
+from susp_bo.rig.spec import RigSpec, load_rig_spec  # noqa: E402
+from susp_bo.rig.spectra import log_amplitude_spectra, with_noise_floor  # noqa: E402
+from susp_bo.rig.track import SpeedProfile  # noqa: E402
+
+
+@dataclasses.dataclass(frozen=True)
+class Options:
+    """What an SBC run is (stored in ``OUT/config.json``; a resume must match)."""
+
+    nu: int
+    noise: float
+    seed: int
+    error: str
+    budget: int | None
+    smoke: bool
+    reference_only: bool = False
+    zoom: bool = False
+
+
+def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
+    """The demo's calibration settings, seeded per experiment (and shrunk with --smoke)."""
+    config = demo_config(Path("/nonexistent"), smoke=False, seed=0)
+    settings = calibration_settings(config)
+    seed = int(np.random.SeedSequence([options.seed, experiment, 7]).generate_state(1)[0] >> 1)
+    settings = dataclasses.replace(settings, seed=seed, mcmc_seed=seed + 1)
+    if options.budget is not None:
+        settings = dataclasses.replace(
+            settings,
+            max_evaluations=options.budget,
+            initial_design_size=min(settings.initial_design_size or 40, options.budget - 2),
+        )
+    if options.smoke:
+        settings = dataclasses.replace(
+            settings,
+            max_evaluations=14,
+            initial_design_size=10,
+            check_points=2,
+            batch_size=2,
+            mcmc_chains=16,
+            mcmc_warmup=100,
+            mcmc_samples=200,
+        )
+    return settings
+
+
+class FastPathProblem:
+    """Synthetic runs of one truth and ``evaluate(W) -> log L`` on the linearised rig."""
+
+    def __init__(self, spec: RigSpec, truth: dict[str, float], options: Options, seed: int):
+        self.spec = spec
+        self.names = spec.calibration_names
+        self.options = options
+        sim = spec.simulation
+        self.rate = sim.sample_rate_hz
+        true_spec = spec.with_parameters(truth)
+        rig = LinearisedRig(true_spec)
+        profile = SpeedProfile.constant(sim.speed_m_s, sim.warm_up_s + sim.duration_s)
+        measured, tracks, n_samples = [], [], []
+        for index in range(options.nu):
+            geometry = synthetic_track(true_spec, seed=track_seed(seed, index))
+            response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / self.rate)
+            signals = np.array(response.accelerations_m_s2, dtype=np.float64)
+            if options.noise > 0:
+                signals += np.random.default_rng([seed, index, 2]).normal(
+                    0.0, options.noise, signals.shape
+                )
+            spectra = log_amplitude_spectra(signals, self.rate, response.channels, spec.spectrum)
+            measured.append(spectra.log_amplitude)
+            tracks.append(TrackRun(f"run{index:03d}", geometry, profile))
+            n_samples.append(signals.shape[1])
+        self.measured = np.stack(measured)
+        self.tracks = tuple(tracks)
+        self.error: PairedOutputError | OutputError
+        if options.error == "paired":
+            self.error = PairedOutputError(
+                options.noise, self.rate, tuple(n_samples), spec.spectrum
+            )
+        else:
+            self.error = estimate_output_error(self.measured)
+        self.simulator = LinearSimulator()
+        self.evaluations = 0
+
+    def simulated(self, w: np.ndarray) -> np.ndarray:
+        """(ν x C x F) simulated spectra with the noise floor, run i on track i."""
+        parameters = dict(zip(self.names, np.asarray(w, dtype=float).tolist()))
+        spectra = [self.simulator.spectra(self.spec, parameters, t) for t in self.tracks]
+        return with_noise_floor(np.stack(spectra), self.options.noise, self.rate)
+
+    def log_l(self, w: np.ndarray) -> float:
+        """log L at one parameter vector (physical units)."""
+        h = self.simulated(w)
+        if isinstance(self.error, PairedOutputError):
+            return float(paired_log_likelihood(self.measured, h, self.error))
+        return float(log_likelihood(self.measured, h, self.error))
+
+    def __call__(self, W: np.ndarray) -> np.ndarray:
+        self.evaluations += len(W)
+        out = []
+        for w in np.atleast_2d(W):
+            try:
+                out.append(self.log_l(w))
+            except (ValueError, np.linalg.LinAlgError):
+                out.append(math.nan)
+        return np.asarray(out, dtype=np.float64)
+
+
+def reference_experiment(options: Options, experiment: int) -> dict[str, Any]:
+    """One SBC experiment of the exact-likelihood Laplace posterior only (no surrogate).
+
+    Gauss–Newton starts at the truth (the mode is within a few posterior sd of it), so
+    this tests the error model B alone, at a small fraction of the cost.
+    """
+    started = time.perf_counter()
+    spec = load_rig_spec(DEMO_RIG)
+    bounds = spec.calibration_bounds
+    rng = np.random.default_rng([options.seed, experiment, 11])
+    truth = bounds[0] + rng.uniform(size=bounds.shape[1]) * (bounds[1] - bounds[0])
+    lap = laplace_reference(
+        options, {"experiment": experiment, "truth": truth.tolist(), "best_w": truth.tolist()}
+    )
+    z = np.asarray(lap["z"])
+    return {
+        "experiment": experiment,
+        "truth": truth.tolist(),
+        "quantile": lap["quantile"],
+        "z": lap["z"],
+        "mean": lap["mode"],
+        "sd": lap["sd"],
+        "inside95": lap["inside95"],
+        "inside_equal_tailed95": lap["inside95"],
+        "truth_log_l": lap["log_l_truth"],
+        "best_log_l": lap["log_l_mode"],
+        "best_w": lap["mode"],
+        "r_hat_max": math.nan,
+        "ess_min": math.nan,
+        "check": None,
+        "laplace": lap,
+        "reference_only": True,
+        "max_abs_z": float(np.max(np.abs(z))),
+        "seconds": time.perf_counter() - started,
+    }
+
+
+def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
+    """One SBC experiment (draw, synthesise, calibrate, score); returns its record."""
+    if options.reference_only:
+        return reference_experiment(options, experiment)
+    started = time.perf_counter()
+    spec = load_rig_spec(DEMO_RIG)
+    names = spec.calibration_names
+    bounds = spec.calibration_bounds
+    rng = np.random.default_rng([options.seed, experiment, 11])
+    truth = bounds[0] + rng.uniform(size=len(names)) * (bounds[1] - bounds[0])
+    seed = int(np.random.SeedSequence([options.seed, experiment, 13]).generate_state(1)[0])
+    problem = FastPathProblem(spec, dict(zip(names, truth.tolist())), options, seed)
+    settings = demo_settings(options, experiment)
+
+    def report(item: IterationReport) -> None:
+        print(
+            f"coverage: experiment {experiment}: iteration {item.iteration} [{item.phase}] "
+            f"{item.n_evaluations} evaluations, best log L {item.best_log_likelihood:.1f} "
+            f"({time.perf_counter() - started:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    zoom_box = None
+    if options.zoom:
+        # prototype of a two-stage search (not the tool's loop): half the budget on C_w,
+        # then the other half on a box around the first stage's posterior (uniform prior
+        # truncated to the box: valid while the box holds the posterior mass)
+        budget = settings.max_evaluations or 200
+        first = calibrate(
+            problem,
+            bounds,
+            names,
+            dataclasses.replace(settings, max_evaluations=budget // 2, check_points=0),
+            progress=False,
+            on_iteration=report,
+        )
+        span = bounds[1] - bounds[0]
+        best = first.X[int(np.nanargmax(first.y))]
+        centre = first.summary.mean
+        half = np.maximum.reduce([0.02 * span, 5 * np.abs(best - centre), 10 * first.summary.sd])
+        zoom_box = np.stack(
+            [np.maximum(bounds[0], best - half), np.minimum(bounds[1], best + half)]
+        )
+        settings = dataclasses.replace(
+            settings,
+            max_evaluations=budget - budget // 2,
+            initial_design_size=min(30, budget - budget // 2 - 2),
+            seed=settings.seed + 1,
+        )
+    result = calibrate(
+        problem,
+        bounds if zoom_box is None else zoom_box,
+        names,
+        settings,
+        progress=False,
+        on_iteration=report,
+    )
+    draws = result.draws.reshape(-1, len(names))
+    quantile = np.mean(draws < truth[None, :], axis=0)
+    mean, sd = draws.mean(axis=0), draws.std(axis=0)
+    interval = np.asarray(result.summary.interval95)
+    tailed = np.asarray(result.summary.equal_tailed95)
+    truth_log_l = problem.log_l(truth)
+    expected = (
+        paired_expected_log_likelihood(problem.error, problem.measured)
+        if isinstance(problem.error, PairedOutputError)
+        else (math.nan, math.nan)
+    )
+    finite = np.isfinite(result.y)
+    best = int(np.flatnonzero(finite)[np.argmax(result.y[finite])])
+    return {
+        "experiment": experiment,
+        "truth": truth.tolist(),
+        "quantile": quantile.tolist(),
+        "z": ((mean - truth) / sd).tolist(),
+        "mean": mean.tolist(),
+        "sd": sd.tolist(),
+        "interval95": interval.tolist(),
+        "inside95": ((interval[:, 0] <= truth) & (truth <= interval[:, 1])).tolist(),
+        "inside_equal_tailed95": ((tailed[:, 0] <= truth) & (truth <= tailed[:, 1])).tolist(),
+        "truth_log_l": truth_log_l,
+        "best_log_l": float(result.y[best]),
+        "best_w": result.X[best].tolist(),
+        "expected_log_l_at_truth": list(expected),
+        "r_hat_max": float(np.max(result.summary.r_hat)),
+        "ess_min": float(np.min(result.summary.ess)),
+        "check": None if result.check is None else result.check.verdict,
+        "n_evaluations": int(result.n_evaluations)
+        + (0 if zoom_box is None else int(first.n_evaluations)),
+        "zoom_box": None if zoom_box is None else zoom_box.tolist(),
+        "truth_in_zoom_box": None
+        if zoom_box is None
+        else bool(np.all((zoom_box[0] <= truth) & (truth <= zoom_box[1]))),
+        "stop_reason": result.stop_reason,
+        "error": (
+            {"model": "paired", "noise_m_s2": options.noise}
+            if options.error == "paired"
+            else {"model": "unpaired", "sigma": list(problem.error.sigma)}
+        ),
+        "seconds": time.perf_counter() - started,
+    }
+
+
+def laplace_reference(options: Options, record: dict[str, Any]) -> dict[str, Any]:
+    """The exact-likelihood posterior of one experiment, by Laplace (no surrogate).
+
+    Gauss–Newton with the paired model's whitening (sensor-noise covariance and profiled
+    τ_c held fixed within an iteration), started at the best evaluated point, gives the
+    mode and the Fisher covariance (JᵀJ)⁻¹ in the unit cube. The posterior is hundreds
+    to thousands of times narrower than C_w here, so the Gaussian is accurate; its truth
+    quantiles, z and 95 % intervals test the *error model* alone, separately from the
+    surrogate search.
+    """
+    from susp_bo.calibration.paired_error import profile_model_error, whitened_residuals
+    from susp_bo.calibration.welch_noise import noise_residual_moments
+
+    spec = load_rig_spec(DEMO_RIG)
+    names = spec.calibration_names
+    lower, upper = spec.calibration_bounds
+    span = upper - lower
+    truth = np.asarray(record["truth"])
+    seed = int(
+        np.random.SeedSequence([options.seed, record["experiment"], 13]).generate_state(1)[0]
+    )
+    problem = FastPathProblem(spec, dict(zip(names, truth.tolist())), options, seed)
+    error = problem.error
+    if not isinstance(error, PairedOutputError):
+        raise ValueError("laplace_reference: the paired error model only")
+    y = problem.measured
+
+    def log_l(h: np.ndarray) -> float:
+        return float(paired_log_likelihood(y, h, error))
+
+    def whitening(h: np.ndarray) -> list[np.ndarray]:
+        """Per run (C x F' x F) maps of y − h − m to unit-variance coordinates, fixed at h."""
+        z, lam = whitened_residuals(y, h, error)
+        _, t = profile_model_error(z, lam)
+        maps = []
+        for i in range(y.shape[0]):
+            r_full, basis = error.projection(i)
+            _, cov = noise_residual_moments(h[i], error.noise_psd, r_full)
+            cov_p = basis.T @ cov @ basis + t[:, None, None] * np.eye(basis.shape[1])
+            values, vectors = np.linalg.eigh(cov_p)
+            maps.append(np.swapaxes(vectors, -1, -2) @ basis.T / np.sqrt(values)[..., None])
+        return maps
+
+    def jacobian(u: np.ndarray, maps: list[np.ndarray], step: float = 1e-5) -> np.ndarray:
+        columns = []
+        for k in range(u.size):
+            up, down = u.copy(), u.copy()
+            up[k], down[k] = min(u[k] + step, 1.0), max(u[k] - step, 0.0)  # inside C_w
+            dh = (problem.simulated(lower + up * span) - problem.simulated(lower + down * span)) / (
+                up[k] - down[k]
+            )
+            columns.append(
+                np.concatenate([(m @ dh[i][..., None]).ravel() for i, m in enumerate(maps)])
+            )
+        return np.stack(columns, axis=1)  # d(whitened h)/du
+
+    def whitened(h: np.ndarray, maps: list[np.ndarray]) -> np.ndarray:
+        return np.concatenate([(m @ (y[i] - h[i])[..., None]).ravel() for i, m in enumerate(maps)])
+
+    u = (np.asarray(record["best_w"]) - lower) / span
+    h = problem.simulated(lower + u * span)
+    value = log_l(h)
+    for _ in range(10):
+        maps = whitening(h)
+        jac = jacobian(u, maps)
+        info = jac.T @ jac
+        step = np.linalg.solve(info, jac.T @ whitened(h, maps))
+        step = np.clip(u + step, 0.0, 1.0) - u  # projected step: the prior is C_w
+        for _ in range(30):
+            h_new = problem.simulated(lower + (u + step) * span)
+            value_new = log_l(h_new)
+            if value_new >= value:
+                break
+            step = step / 2
+        else:
+            break
+        u, h, value = u + step, h_new, value_new
+        if np.all(np.abs(step) < 0.01 * np.sqrt(np.diag(np.linalg.inv(info)))):  # converged
+            break
+    maps = whitening(h)
+    jac = jacobian(u, maps)
+    cov = np.linalg.inv(jac.T @ jac)
+    sd = np.sqrt(np.diag(cov)) * span
+    mode = lower + u * span
+    z = (mode - truth) / sd
+    return {
+        "mode": mode.tolist(),
+        "sd": sd.tolist(),
+        "z": z.tolist(),
+        "quantile": stats.norm.cdf((truth - mode) / sd).tolist(),
+        "inside95": (np.abs(z) <= 1.959964).tolist(),
+        "log_l_mode": value,
+        "log_l_truth": problem.log_l(truth),
+        "sd_fraction_of_range": (sd / span).tolist(),
+    }
+
+
+def _binomial_range(n: int, p: float = 0.95) -> tuple[int, int]:
+    lo, hi = stats.binom.interval(0.95, n, p)
+    return int(lo), int(hi)
+
+
+def aggregate(records: list[dict[str, Any]], names: tuple[str, ...]) -> dict[str, Any]:
+    """Every figure of the report from the experiment records."""
+    quantiles = np.array([r["quantile"] for r in records])
+    z = np.array([r["z"] for r in records])
+    inside = np.array([r["inside95"] for r in records])
+    tailed = np.array([r["inside_equal_tailed95"] for r in records])
+    n = len(records)
+    lo, hi = _binomial_range(n)
+    pooled_lo, pooled_hi = _binomial_range(inside.size)
+    gap = np.array([r["truth_log_l"] - r["best_log_l"] for r in records])
+    per = {}
+    for k, name in enumerate(names):
+        per[name] = {
+            "ks_p": float(stats.kstest(quantiles[:, k], "uniform").pvalue),
+            "z_rms": float(np.sqrt(np.mean(z[:, k] ** 2))),
+            "z_mean": float(np.mean(z[:, k])),
+            "inside95": int(inside[:, k].sum()),
+            "inside_equal_tailed95": int(tailed[:, k].sum()),
+            "binomial_range": [lo, hi],
+            "coverage_ok": bool(lo <= inside[:, k].sum() <= hi),
+            "quantile_in_middle_half": float(
+                np.mean((quantiles[:, k] >= 0.25) & (quantiles[:, k] <= 0.75))
+            ),
+        }
+    laplace = None
+    if all("laplace" in r for r in records):
+        lq = np.array([r["laplace"]["quantile"] for r in records])
+        lz = np.array([r["laplace"]["z"] for r in records])
+        li = np.array([r["laplace"]["inside95"] for r in records])
+        laplace = {
+            "pooled": {
+                "ks_p": float(stats.kstest(lq.ravel(), "uniform").pvalue),
+                "z_rms": float(np.sqrt(np.mean(lz**2))),
+                "inside95": int(li.sum()),
+                "of": int(li.size),
+                "binomial_range": [pooled_lo, pooled_hi],
+            },
+            "per_parameter": {
+                name: {
+                    "ks_p": float(stats.kstest(lq[:, k], "uniform").pvalue),
+                    "z_rms": float(np.sqrt(np.mean(lz[:, k] ** 2))),
+                    "inside95": int(li[:, k].sum()),
+                    "binomial_range": [lo, hi],
+                }
+                for k, name in enumerate(names)
+            },
+            "sd_fraction_of_range_median": np.median(
+                [r["laplace"]["sd_fraction_of_range"] for r in records], axis=0
+            ).tolist(),
+            "surrogate_sd_over_laplace_sd_median": np.median(
+                [np.divide(r["sd"], r["laplace"]["sd"]) for r in records], axis=0
+            ).tolist(),
+        }
+    return {
+        "n_experiments": n,
+        "exact_likelihood_laplace": laplace,
+        "pooled": {
+            "ks_p": float(stats.kstest(quantiles.ravel(), "uniform").pvalue),
+            "z_rms": float(np.sqrt(np.mean(z**2))),
+            "inside95": int(inside.sum()),
+            "of": int(inside.size),
+            "binomial_range": [pooled_lo, pooled_hi],
+            "quantile_in_middle_half": float(np.mean((quantiles >= 0.25) & (quantiles <= 0.75))),
+        },
+        "per_parameter": per,
+        "search": {
+            # "optimum not reached": best evaluated log L below the log L expected at the
+            # truth under B by more than 3 sd (likelihood.expected_log_likelihood_at_truth)
+            "best_below_expected_at_truth_by_3sd": int(
+                sum(
+                    r["best_log_l"]
+                    < r["expected_log_l_at_truth"][0] - 3 * r["expected_log_l_at_truth"][1]
+                    for r in records
+                    if "expected_log_l_at_truth" in r
+                    and math.isfinite(r["expected_log_l_at_truth"][0])
+                )
+            ),
+            "best_minus_expected_at_truth_in_sd": [
+                (r["best_log_l"] - r["expected_log_l_at_truth"][0])
+                / r["expected_log_l_at_truth"][1]
+                for r in records
+                if "expected_log_l_at_truth" in r and math.isfinite(r["expected_log_l_at_truth"][0])
+            ],
+            "truth_beats_best_evaluated": int(np.sum(gap > 0)),
+            "truth_minus_best_log_l_median": float(np.median(gap)),
+            "truth_minus_best_log_l_max": float(np.max(gap)),
+        },
+        "r_hat_max": float(max(r["r_hat_max"] for r in records)),
+        "checks": {v: sum(r["check"] == v for r in records) for v in {r["check"] for r in records}},
+        "seconds_per_experiment_median": float(np.median([r["seconds"] for r in records])),
+    }
+
+
+def rank_figure(records: list[dict[str, Any]], names: tuple[str, ...], path: Path) -> None:
+    """Histograms of the truth's posterior quantile per parameter and pooled (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    quantiles = np.array([r["quantile"] for r in records])
+    n = len(records)
+    bins = max(4, min(10, n // 4))
+    panels = [*names, "pooled"]
+    cols = 4
+    rows = math.ceil(len(panels) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    overlay = None
+    if all("laplace" in r for r in records) and not any(r.get("reference_only") for r in records):
+        overlay = np.array([r["laplace"]["quantile"] for r in records])
+    for ax, name in zip(axes.ravel(), panels):
+        data = quantiles.ravel() if name == "pooled" else quantiles[:, names.index(name)]
+        ax.hist(data, bins=bins, range=(0, 1), color="tab:blue", edgecolor="white")
+        if overlay is not None:
+            ref = overlay.ravel() if name == "pooled" else overlay[:, names.index(name)]
+            ax.hist(
+                ref,
+                bins=bins,
+                range=(0, 1),
+                histtype="step",
+                color="k",
+                lw=1.5,
+                label="exact-likelihood Laplace",
+            )
+            if name == "pooled":
+                ax.legend(fontsize=6, loc="upper center")
+        expect = data.size / bins
+        band = stats.binom.interval(0.95, data.size, 1 / bins)
+        ax.axhline(expect, color="k", lw=1)
+        ax.axhspan(band[0], band[1], color="0.85", zorder=0)
+        p = stats.kstest(data, "uniform").pvalue
+        ax.set_title(f"{name}\nKS p = {p:.2g}", fontsize=8)
+        ax.set_xlim(0, 1)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[len(panels) :]:
+        ax.axis("off")
+    kind = (
+        "exact-likelihood Laplace posterior"
+        if records[0].get("reference_only")
+        else "calibrate loop; black: exact-likelihood Laplace"
+        if overlay is not None
+        else "calibrate loop"
+    )
+    fig.suptitle(
+        f"SBC rank histograms: truth's posterior quantile, {n} experiments "
+        f"({kind}; grey: 95 % band of a uniform histogram)",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run (or resume) the SBC and write its figures."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--experiments", type=int, default=40)
+    parser.add_argument("--nu", type=int, default=3, help="measured runs per experiment")
+    parser.add_argument("--noise", type=float, default=0.01, help="sensor noise, m/s^2 rms")
+    parser.add_argument("--workers", type=int, default=1, help="experiments in parallel")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--error", choices=("paired", "unpaired"), default="paired")
+    parser.add_argument("--budget", type=int, default=None, help="default: the demo's")
+    parser.add_argument("--smoke", action="store_true", help="tiny budgets (tests)")
+    parser.add_argument(
+        "--laplace",
+        action="store_true",
+        help="also the exact-likelihood Laplace posterior of every finished experiment "
+        "(tests the error model without the surrogate; paired model only)",
+    )
+    parser.add_argument(
+        "--reference-only",
+        action="store_true",
+        help="no calibration loop: the exact-likelihood Laplace posterior started at the "
+        "truth (tests the error model alone, about a minute an experiment)",
+    )
+    parser.add_argument(
+        "--zoom",
+        action="store_true",
+        help="prototype two-stage search: half the budget on C_w, half on a box around "
+        "the first posterior (evidence for the loop, not the tool's method)",
+    )
+    parser.add_argument(
+        "--aggregate-only", action="store_true", help="figures of the finished experiments only"
+    )
+    args = parser.parse_args(argv)
+    for flag, value, low in (("--experiments", args.experiments, 1), ("--nu", args.nu, 1)):
+        if value < low:
+            parser.error(f"{flag}: got {value}; expected an integer >= {low}")
+    if args.workers < 1:
+        parser.error(f"--workers: got {args.workers}; expected an integer >= 1")
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        parser.error(f"--noise: got {args.noise}; expected a finite value >= 0 m/s^2")
+    if args.error == "paired" and args.noise == 0:
+        parser.error("--noise: 0 with --error paired leaves only the profiled model error")
+    if args.error == "unpaired" and args.nu < 2:
+        parser.error("--nu: the unpaired model estimates σ_B from >= 2 runs")
+    if args.budget is not None and args.budget < 12:
+        parser.error(f"--budget: got {args.budget}; expected >= 12")
+    if args.reference_only and args.error != "paired":
+        parser.error("--reference-only: the Laplace reference needs --error paired")
+    options = Options(
+        args.nu,
+        args.noise,
+        args.seed,
+        args.error,
+        args.budget,
+        args.smoke,
+        args.reference_only,
+        args.zoom,
+    )
+    out: Path = args.out
+    folder = out / "experiments"
+    folder.mkdir(parents=True, exist_ok=True)
+    config_path = out / "config.json"
+    if config_path.exists():
+        stored = {"reference_only": False, "zoom": False, **json.loads(config_path.read_text())}
+        if stored != dataclasses.asdict(options):
+            parser.error(
+                f"--out: {out} holds an SBC run with other options {stored}; "
+                "choose another folder or the same options"
+            )
+    else:
+        config_path.write_text(json.dumps(dataclasses.asdict(options), indent=1))
+    names = load_rig_spec(DEMO_RIG).calibration_names
+    todo = [e for e in range(args.experiments) if not (folder / f"{e:04d}.json").exists()]
+    print(
+        f"coverage: {args.experiments - len(todo)} of {args.experiments} experiments done, "
+        f"running {len(todo)} (ν = {args.nu}, noise {args.noise} m/s², {args.error})",
+        file=sys.stderr,
+    )
+
+    def save(record: dict[str, Any]) -> None:
+        path = folder / f"{record['experiment']:04d}.json"
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(record, indent=1))
+        tmp.replace(path)
+        inside = sum(record["inside95"])
+        print(
+            f"coverage: experiment {record['experiment']} done in {record['seconds']:.0f} s: "
+            f"{inside}/{len(names)} inside, max |z| {max(abs(v) for v in record['z']):.2f}, "
+            f"truth - best log L {record['truth_log_l'] - record['best_log_l']:.2f}, "
+            f"check {record['check']}",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    if args.aggregate_only:
+        todo = []
+    if args.workers == 1:
+        for e in todo:
+            save(run_experiment(options, e))
+    else:
+        with ProcessPoolExecutor(args.workers) as pool:
+            futures = [pool.submit(run_experiment, options, e) for e in todo]
+            for future in as_completed(futures):
+                save(future.result())
+    paths = [folder / f"{e:04d}.json" for e in range(args.experiments)]
+    records = [json.loads(path.read_text()) for path in paths if path.exists()]
+    if not records:
+        print("coverage: no finished experiment yet", file=sys.stderr)
+        return 0
+    if args.laplace and args.error == "paired":
+        for record in records:
+            if "laplace" not in record:
+                record["laplace"] = laplace_reference(options, record)
+                lap = record["laplace"]
+                print(
+                    f"coverage: experiment {record['experiment']} exact-likelihood Laplace: "
+                    f"{sum(lap['inside95'])}/{len(names)} inside, max |z| "
+                    f"{max(abs(v) for v in lap['z']):.2f}",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                save_quiet = folder / f"{record['experiment']:04d}.json"
+                tmp = save_quiet.with_suffix(".tmp")
+                tmp.write_text(json.dumps(record, indent=1))
+                tmp.replace(save_quiet)
+    figures = aggregate(records, names)
+    figures["options"] = dataclasses.asdict(options)
+    figures["parameters"] = list(names)
+    (out / "coverage.json").write_text(json.dumps(figures, indent=1))
+    rank_figure(records, names, out / "ranks.png")
+    pooled = figures["pooled"]
+    print(
+        f"coverage: {len(records)} experiments; pooled KS p {pooled['ks_p']:.3g}, z rms "
+        f"{pooled['z_rms']:.2f}, inside {pooled['inside95']}/{pooled['of']} (binomial range "
+        f"{pooled['binomial_range']}); truth beat the best evaluated point in "
+        f"{figures['search']['truth_beats_best_evaluated']}/{len(records)}",
+        file=sys.stderr,
+    )
+    for name, row in figures["per_parameter"].items():
+        print(
+            f"  {name:32s} KS p {row['ks_p']:.3g}  z rms {row['z_rms']:.2f}  "
+            f"inside {row['inside95']}/{len(records)} {row['binomial_range']}",
+            file=sys.stderr,
+        )
+    if figures["exact_likelihood_laplace"] is not None:
+        lap = figures["exact_likelihood_laplace"]
+        print(
+            f"coverage: exact-likelihood Laplace posterior (error model alone): pooled KS p "
+            f"{lap['pooled']['ks_p']:.3g}, z rms {lap['pooled']['z_rms']:.2f}, inside "
+            f"{lap['pooled']['inside95']}/{lap['pooled']['of']}",
+            file=sys.stderr,
+        )
+        for name, row in lap["per_parameter"].items():
+            print(
+                f"  {name:32s} KS p {row['ks_p']:.3g}  z rms {row['z_rms']:.2f}  "
+                f"inside {row['inside95']}/{len(records)}",
+                file=sys.stderr,
+            )
+    print(f"coverage: wrote {out / 'coverage.json'} and {out / 'ranks.png'}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
