@@ -57,7 +57,7 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         seeds=SeedsConfig(calibration=0, mcmc=1),
         executor=ExecutorConfig(workers=8),
         mcmc=MCMCConfig(chains=512, draws=2000, warmup=500),
-        output_error=OutputErrorConfig(model="paired", sigma="estimate", sensor_noise_m_s2=0.005),
+        output_error=OutputErrorConfig(model="unpaired", sigma="estimate", sensor_noise_m_s2=0.005),
     )
 
 
@@ -200,7 +200,7 @@ def test_direct_construction_is_validated_too() -> None:
 
 def test_paired_config_refuses_a_correlation_length() -> None:
     with pytest.raises(ValueError, match=r"correlation_length_hz.*unpaired"):
-        OutputErrorConfig(correlation_length_hz=0.5)
+        OutputErrorConfig(model="paired", correlation_length_hz=0.5)
     with pytest.raises(ValueError, match=r"output_error\.model"):
         OutputErrorConfig(model="mixture")
     assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"

@@ -1,4 +1,4 @@
-"""The study's output-error model: paired by default, unpaired on request, both recorded."""
+"""The study's output-error model: unpaired by default, paired on request, both recorded."""
 
 from __future__ import annotations
 
@@ -21,6 +21,8 @@ from tests.integration.conftest import FAST_PARAMETERS
 
 
 def _config(rig: Path, data: Path, out: Path, **error: object) -> StudyConfig:
+    """A study of the fast rig; the paired model unless ``model`` says otherwise."""
+    error.setdefault("model", "paired")
     return StudyConfig(
         rig=str(rig),
         data=data,
@@ -30,9 +32,12 @@ def _config(rig: Path, data: Path, out: Path, **error: object) -> StudyConfig:
     )
 
 
-def test_paired_is_the_default_and_unpaired_keeps_the_replicate_sigma(
+def test_unpaired_is_the_default_and_keeps_the_replicate_sigma(
     fast_rig: Path, fast_data: Path, tmp_path: Path
 ) -> None:
+    default = StudyConfig(rig=str(fast_rig), data=fast_data, out=tmp_path / "c")
+    assert default.output_error.model == "unpaired"
+    assert isinstance(prepare_study(default).error, OutputError)
     paired = prepare_study(_config(fast_rig, fast_data, tmp_path / "a"))
     assert isinstance(paired.error, PairedOutputError)
     assert paired.error.noise_m_s2 == 0.005  # from the runs' metadata
