@@ -292,6 +292,7 @@ def calibrate(
     settings: CalibrationSettings | None = None,
     progress: bool = True,
     on_iteration: Callable[[IterationReport], None] | None = None,
+    initial_points: np.ndarray | None = None,
 ) -> CalibrationResult:
     """Bayesian calibration of w on C_w from log L evaluations (the paper's four steps).
 
@@ -303,6 +304,9 @@ def calibrate(
         settings: calibration settings (defaults if None).
         progress: show a tqdm bar of evaluations on stderr.
         on_iteration: called with an :class:`IterationReport` after every batch.
+        initial_points: (m x q) points (physical units, clipped to the bounds) evaluated
+            with the design, which has m points fewer (a warm start: e.g. a previous
+            fit's maximum); None = none.
 
     Returns:
         The :class:`CalibrationResult`.
@@ -317,7 +321,11 @@ def calibrate(
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
     bar = tqdm(total=budget, file=sys.stderr, disable=not progress, desc="log L evaluations")
-    x = space_filling_design(n0, b, _seed(settings.seed, 0, 0), settings.design_method)
+    extra = np.empty((0, q)) if initial_points is None else np.atleast_2d(initial_points)
+    if extra.shape[1:] != (q,) or extra.shape[0] >= n0:
+        raise ValueError(f"initial_points: shape {extra.shape}; expected (m x {q}) with m < {n0}")
+    x = space_filling_design(n0 - len(extra), b, _seed(settings.seed, 0, 0), settings.design_method)
+    x = np.vstack([x, np.clip(extra, b[0], b[1])])
     y = _evaluate(evaluate, x)
     bar.update(n0)
     phase: Phase = "ego"

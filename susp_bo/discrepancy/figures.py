@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.discrepancy.detection import DB_PER_NEPER, Detection
-from susp_bo.discrepancy.workflow import DiagnosisReport
+from susp_bo.discrepancy.report import DiagnosisReport
 
 
 def _heat_map(ax: object, detection: Detection, edges_hz: np.ndarray, title: str) -> object:
