@@ -16,6 +16,8 @@ kind                        what changes (generator only; the model keeps the ba
 ``sensor_on_bracket``       the carbody front lateral accelerometer on a compliant bracket
                             (a 6 Hz, 10 % damped base-excited oscillator between car and
                             sensor)
+``sensor_rolled``           the front bogie lateral accelerometer mounted rolled by 20°:
+                            it reads cos θ · lateral + sin θ · vertical
 ``sensor_misplaced``        the carbody front accelerometers mounted at x = 4.0 m instead
                             of above the bogie (8.75 m): less pitch in the vertical channel
 ==========================  ===========================================================
@@ -164,6 +166,11 @@ MODIFICATIONS: dict[str, Modification] = {
             "sensor_on_bracket",
             "front carbody lateral accelerometer on a compliant bracket (6 Hz, 10 % damping)",
             bracket=("carbody_front_lateral", 6.0, 0.1),
+        ),
+        Modification(
+            "sensor_rolled",
+            "front bogie lateral accelerometer mounted rolled by 20 deg (reads vertical too)",
+            mixing=("bogie_front_lateral", "bogie_front_vertical", 20.0),
         ),
         Modification(
             "sensor_misplaced",
