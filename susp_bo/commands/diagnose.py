@@ -131,7 +131,17 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
         span = bounds[1] - bounds[0]
         sd = np.maximum(np.asarray(summary["sd"], dtype=np.float64), 1e-9 * span)
         (folder / "result.json").write_text(
-            json.dumps({"parameters": list(names), **json_ready(summary)}, indent=2) + "\n"
+            json.dumps(
+                {
+                    "parameters": list(names),
+                    "bounds": bounds.tolist(),
+                    "warm_start": {"ranking_refit": start.tolist(), "window": bounds.tolist()},
+                    "n_evaluations": int(result.n_evaluations),
+                    **json_ready(summary),
+                },
+                indent=2,
+            )
+            + "\n"
         )
         return Fit(
             spec=spec,

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from susp_bo.discrepancy.scenarios import synthesize_problem
-from susp_bo.discrepancy.workflow import run_workflow
+from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
 
 SLOW, FAST = 55.56, 83.33
 CASES = [
@@ -121,7 +121,8 @@ def test_a_recalibration_that_ends_worse_is_not_accepted(base_spec, linear_simul
         bad_fits.append(dataclasses.replace(best.fit, w=w))
         return bad_fits[-1]
 
-    report = run_workflow(problem, linear_simulator, recalibrate=recalibrate)
+    settings = WorkflowSettings(candidates=("carbody_bending", "air_spring_reservoir"))
+    report = run_workflow(problem, linear_simulator, settings=settings, recalibrate=recalibrate)
     document = report.to_dict()
     assert bad_fits and document["verdict"] == "named"
     codes = {r["code"] for r in document["recalibration_rejected"]}
