@@ -24,6 +24,7 @@ trusted and the line says so; a real verdict is used as it is.
 
     python benchmarks/discrepancy_naming.py                 # fast path, full sweep
     python benchmarks/discrepancy_naming.py --quick         # one seed, one noise level
+    python benchmarks/discrepancy_naming.py --quick --parts ladder outside null
     python benchmarks/discrepancy_naming.py --mode cli --out /tmp/dn --workers 1 \\
         --cases carbody_bending lateral_bump_stop high_conicity primary_lateral_soft \\
                 sensor_rolled null
@@ -84,13 +85,25 @@ def _line(label: str, speed: float, noise: float, seed: int, report) -> str:
     )
 
 
-def fast_mode(quick: bool) -> None:
-    """The fast-path sweep of the module docstring."""
+def fast_mode(quick: bool, parts: list[str]) -> None:
+    """The fast-path sweep of the module docstring (``parts`` of it)."""
     spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
     simulator = LinearSimulator()
     seeds = [1] if quick else [1, 2, 3]
     noises = [0.02] if quick else [0.01, 0.05]
     started = time.perf_counter()
+    if "names" in parts:
+        _fast_names(spec, simulator, seeds, noises)
+    if "outside" in parts:
+        _fast_outside(spec, simulator, seeds)
+    if "null" in parts:
+        _fast_null(spec, simulator, seeds, noises)
+    if "ladder" in parts:
+        _fast_ladder(spec, simulator)
+    print(f"\nwall time {time.perf_counter() - started:.0f} s")
+
+
+def _fast_names(spec, simulator, seeds, noises) -> None:
     hits, total, ratios, worse_accepted, n_accepted = 0, 0, {}, 0, 0
     print(f"{'case':28s} speed noise seed  {'verdict':24s} {'named':28s} margin")
     for name, values in NOMINAL.items():
@@ -115,6 +128,9 @@ def fast_mode(quick: bool) -> None:
     for name, values in ratios.items():
         print(f"  gap ratio after/before on all bins, {name:28s} median "
               f"{statistics.median(values):.3g} max {max(values):.3g}")  # fmt: skip
+
+
+def _fast_outside(spec, simulator, seeds) -> None:
     false_names, flagged, n_ool = 0, 0, 0
     print()
     for kind in MODIFICATIONS:
@@ -128,6 +144,9 @@ def fast_mode(quick: bool) -> None:
                 false_names += report.named_effect is not None
                 flagged += bool(report.before.bands)
     print(f"\nout of library: false names {false_names}/{n_ool}; flagged {flagged}/{n_ool}")
+
+
+def _fast_null(spec, simulator, seeds, noises) -> None:
     null_any, null_bins, n_null = 0, [], 0
     for speed in SPEEDS:
         for noise in noises:
@@ -140,6 +159,9 @@ def fast_mode(quick: bool) -> None:
                 null_bins.append(report.before.flagged_fraction)
     print(f"\nnull data sets with a flag or a name: {null_any}/{n_null} "
           f"(BH q = 0.05); mean flagged-bin share {statistics.mean(null_bins):.4f}")  # fmt: skip
+
+
+def _fast_ladder(spec, simulator) -> None:
     print("\nsmallest amplitude still named (noise 0.02, seed 1):")
     for speed in SPEEDS:
         for name, (key, ladder) in LADDERS.items():
@@ -152,7 +174,6 @@ def fast_mode(quick: bool) -> None:
                     break
                 smallest = value
             print(f"  {speed:5.2f} m/s {name:28s} {key} = {smallest} (ladder {ladder})", flush=True)
-    print(f"\nwall time {time.perf_counter() - started:.0f} s")
 
 
 # ---------------------------------------------------------------- command-line chain
@@ -275,6 +296,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mode", choices=("fast", "cli"), default="fast")
     parser.add_argument("--quick", action="store_true", help="fast mode: one seed, one noise")
+    parser.add_argument("--parts", nargs="+", choices=("names", "outside", "null", "ladder"),
+                        default=["names", "outside", "null", "ladder"],
+                        help="fast mode: which parts to run")  # fmt: skip
     parser.add_argument("--out", default="discrepancy_naming_cli", help="cli mode: work folder")
     parser.add_argument("--cases", nargs="+",
                         default=[*NOMINAL, *MODIFICATIONS, "null"],
@@ -286,7 +310,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1, help="cli mode: data seed")
     args = parser.parse_args()
     if args.mode == "fast":
-        fast_mode(args.quick)
+        fast_mode(args.quick, args.parts)
     else:
         cli_mode(args)
 
