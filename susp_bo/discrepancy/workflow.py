@@ -183,7 +183,9 @@ def _run(
                    "verdict": "unexplained_disagreement"}  # fmt: skip
     if best is None or best.fit is None:
         return DiagnosisReport(**unexplained)
-    naming = name_check(problem, fast, ranking_base, before, best, settings)
+    naming = name_check(
+        problem, fast, ranking_base, before, best, settings, before if fast is simulator else None
+    )
     if not naming.passes:
         return DiagnosisReport(**unexplained, naming_check=naming)
     augmented = best.fit if recalibrate is None else recalibrate(best)
@@ -220,11 +222,14 @@ def name_check(
     before: Detection,
     best: RankedEffect,
     settings: WorkflowSettings,
+    base_check: Detection | None = None,
 ) -> NamingCheck:
     """The naming rule on the best candidate: base refit and augmented refit checked on
-    the ranking's simulator, compared on the bins flagged before."""
+    the ranking's simulator, compared on the bins flagged before (``base_check``: the
+    base refit's check when already done)."""
     assert best.fit is not None
-    base_check = check(problem, fast, ranking_base, settings)
+    if base_check is None:
+        base_check = check(problem, fast, ranking_base, settings)
     augmented_check = check(problem, fast, best.fit, settings)
     return check_naming(
         best.effect,
