@@ -184,22 +184,22 @@ def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
 def test_out_of_library_physics_is_flagged_and_not_named(
     fast_rig: Path, study_writer, calibrate_command, tmp_path: Path
 ) -> None:
-    """Worn profiles (conicity 0.10 -> 0.35) in a rig file the model does not know.
+    """The front bogie lateral accelerometer mounted rolled by 20° (it reads vertical motion
+    too): the records change, not the vehicle, and no library effect represents it.
 
     Depends on the reliability contract after the merge: the small study must be trusted.
     """
-    import tomllib
-
-    change = get_modification("high_conicity")
-    generator = tmp_path / "worn_profiles.toml"
-    generator.write_text(tomli_w.dumps(change.apply_document(tomllib.loads(fast_rig.read_text()))))
-    data = _synth(tmp_path, generator)
+    data = _synth(tmp_path, fast_rig)
+    change = get_modification("sensor_rolled")
+    for path in sorted(data.glob("run_*.h5")):
+        save_run(change.apply_run(load_run(path)), path)
     result = _calibrate(tmp_path, fast_rig, data, study_writer, calibrate_command)
     trusted_if_absent(result)
     done = _diagnose(result, tmp_path / "diagnosis", "--budget", "10")
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads((tmp_path / "diagnosis" / "discrepancy.json").read_text())
-    assert report["flagged"], "the changed contact must be flagged"
+    assert report["flagged"], "the rolled sensor must be flagged"
+    assert any(band["channel"] == "bogie_front_lateral" for band in report["flagged"])
     assert report["verdict"] == "unexplained_disagreement"
     assert report["named_effect"] is None and report["augmented"] is None
     assert "no library effect explains" in done.stderr
