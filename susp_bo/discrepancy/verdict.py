@@ -14,7 +14,8 @@ Verdicts (``discrepancy.json["verdict"]``, the command-line summary, the noteboo
 
 Naming rule (a candidate is named only when *all* hold, else unexplained):
 
-1. evidence: its refit score (penalised log-likelihood gain, nats) > ``min_score``;
+1. evidence: its refit score (log-likelihood gain less the BIC penalty, nats) >
+   ``min_score`` (3 nats: "strong" evidence on the Kass–Raftery scale of ln B);
 2. no effect parameter of the refit within ``bound_tolerance`` (share of its
    range) of a bound — an effect pinned at a bound is being used as a knob, not
    identified;
@@ -61,7 +62,7 @@ class NamingRule:
             refit, as a share of the strongest band before, in [0, 1).
     """
 
-    min_score: float = 10.0
+    min_score: float = 3.0
     bound_tolerance: float = 0.01
     min_explained: float = 0.6
     max_remaining_share: float = 0.3

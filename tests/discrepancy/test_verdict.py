@@ -67,7 +67,7 @@ def test_each_failed_condition_gives_its_reason() -> None:
     before = _check(_pattern(1.0))
     half = _check(_pattern(0.7, elsewhere=1.2), seed=1)  # explains half, new disagreement elsewhere
     result = check_naming(
-        "effect", 5.0, ["effect_k"], ["a", "effect_k"], np.array([0.5, 0.999]),
+        "effect", 2.0, ["effect_k"], ["a", "effect_k"], np.array([0.5, 0.999]),
         np.array([[0.0, 0.0], [1.0, 1.0]]), before.flagged, before, half, NamingRule(),
     )  # fmt: skip
     codes = {r["code"] for r in result.reasons}
