@@ -40,7 +40,9 @@ value sits at the bound of the effect's admissible range, which the naming rule 
     wheel_out_of_roundness       1e-4 m (5e-5 consistent)      1e-4 m (5e-5 consistent)
     yaw_damper_series_stiffness  20 MN/m (30 at bound)         20 MN/m (30 at bound)
     lateral_bump_stop            gap 5 mm (7 consistent)       gap 7 mm (9 consistent)
-    air_spring_reservoir         none (2.5 consistent)         see the note of issue 11
+    air_spring_reservoir         none (2.5 consistent)         ratio 2.0 (1.5 consistent)
+
+(1519 s wall.)
 
 ``--mode cli --workers 1 --budget 40 --duration 16`` (q = 4, ν = 3, 83.33 m/s, seed 1;
 reliability: stand-in trusted, the calibrations wrote no verdict yet):
@@ -50,6 +52,9 @@ reliability: stand-in trusted, the calibrations wrote no verdict yet):
     carbody_bending  named, accepted: log predictive density (all bins) 52.4 -> 752.7,
                      flagged share 1.8 % -> 0 %, gap on flagged bins 129.7 -> 0.050, on all
                      bins 2.53 -> 0.039; 10.0 Hz found (truth 10)
+    null             consistent, 0 bands
+    primary_lateral_soft  unexplained_disagreement, 9 bands, best candidate
+                     lateral_bump_stop refused (weak evidence, weak signature, disagreement left)
 
 """
 
