@@ -55,6 +55,7 @@ reliability: stand-in trusted, the calibrations wrote no verdict yet):
     null             consistent, 0 bands
     primary_lateral_soft  unexplained_disagreement, 9 bands, best candidate
                      lateral_bump_stop refused (weak evidence, weak signature, disagreement left)
+    sensor_rolled    unexplained_disagreement, 1 band, lateral_bump_stop refused (same reasons)
 
 """
 
