@@ -56,6 +56,16 @@ reliability: stand-in trusted, the calibrations wrote no verdict yet):
     primary_lateral_soft  unexplained_disagreement, 9 bands, best candidate
                      lateral_bump_stop refused (weak evidence, weak signature, disagreement left)
     sensor_rolled    unexplained_disagreement, 1 band, lateral_bump_stop refused (same reasons)
+    lateral_bump_stop  named, accepted: log predictive density -204.7 -> 638.8, flagged
+                     share 8.4 % -> 0 %, gap on flagged bins 24.6 -> 0.0059, all bins 2.87 -> 0.036
+    air_spring_reservoir  MISSED: unexplained_disagreement, 7 bands; the right candidate
+                     (score 416, explains 99.6 %, 0 % left) refused only because its fitted
+                     stiffness_ratio is 3.0 = the upper bound of its range, which is also the
+                     truth used here (NOMINAL); with the truth on a bound the at-bound rule
+                     cannot tell "identified" from "pinned"
+    in library 2/3 right, out of library 0/3 false names (3/3 flagged), null 0/1 flagged,
+    accepted augmented models better on all bins 2/2. Not run (time): yaw_damper_series_
+    stiffness, wheel_out_of_roundness, sensor_on_bracket, sensor_misplaced, a second speed.
 
 """
 
