@@ -1,27 +1,95 @@
-"""Discrepancy workflow: naming accuracy over hidden-effect cases, smallest named amplitude.
+"""Discrepancy workflow: right names, no false names, no false alarms, no worse models.
 
-Fast path (linearised rig on seeded tracks) on the maintainer's base rig, band
-0.3–40 Hz, ν = 3 runs of 20 s. Prints, all measured in this run:
+Two modes, every figure measured in the run that prints it.
 
-* per case (effect × speed × noise × seed): named effect, score margin, gap before/after;
-* naming accuracy over all hidden cases, gap ratio per effect (median);
-* false alarms on null data: share of null data sets with any flagged band and the
-  mean share of flagged bins (expected <= q = 0.05 and ~0);
-* per effect, the smallest amplitude (scale of the effect's strength) still named.
+``fast`` (default) — the linearised rig on seeded tracks (fast path), the
+maintainer's base rig, band 0.3–40 Hz, ν = 3 runs of 20 s, noise 0.01/0.05 m/s²:
 
-    python benchmarks/discrepancy_naming.py            # full sweep (~10 min on 1 core)
-    python benchmarks/discrepancy_naming.py --quick    # one seed, one noise level
+* in-library cases (effect × speed × noise × seed): verdict, named effect, score
+  margin, gap before/after on the flagged bins and on all bins, accepted;
+* out-of-library cases (:mod:`susp_bo.discrepancy.out_of_library`, made without
+  the effects library): verdict, what the best candidate was and why it was not named;
+* null data: share of data sets with any flagged band or a name;
+* per effect and speed (200 and 300 km/h), the smallest amplitude still named.
+
+``cli`` — the command-line chain a user runs (``susp-bo synth`` → ``susp-bo
+calibrate`` → ``susp-bo diagnose``, PyBullet throughout, ranking on the fast path),
+on the maintainer's base rig file (rigid yaw dampers, band 0.3–40 Hz, ν = 3 runs of
+``--duration`` s, q = 4 worn dampers, ``--budget`` evaluations for the calibration
+and for the recalibration): one line per case, then the targets (100 % right names
+in library, 0 false names out of library, 0 flagged bands on null data, every
+accepted augmented model better on all bins). A result.json without a
+``reliability`` block (before the reliability verdict exists) is treated as
+trusted and the line says so; a real verdict is used as it is.
+
+    python benchmarks/discrepancy_naming.py                 # fast path, full sweep
+    python benchmarks/discrepancy_naming.py --quick         # one seed, one noise level
+    python benchmarks/discrepancy_naming.py --quick --parts ladder outside null
+    python benchmarks/discrepancy_naming.py --mode cli --out /tmp/dn --workers 1 \\
+        --cases carbody_bending lateral_bump_stop high_conicity primary_lateral_soft \\
+                sensor_rolled null
+
+Measured on the project's 2-core machine (shared, heavily loaded), 23 Nov 2026:
+
+``--quick --parts ladder`` (fast path, noise 0.02, seed 1; "next" = why the next rung was
+not named: ``consistent`` = not flagged at all, a detection limit; ``at bound`` = the true
+value sits at the bound of the effect's admissible range, which the naming rule refuses):
+
+    effect                       200 km/h (55.56 m/s)        300 km/h (83.33 m/s)
+    carbody_bending              damping 0.06 (0.08 at bound)  damping 0.06 (0.08 at bound)
+    wheel_out_of_roundness       1e-4 m (5e-5 consistent)      1e-4 m (5e-5 consistent)
+    yaw_damper_series_stiffness  20 MN/m (30 at bound)         20 MN/m (30 at bound)
+    lateral_bump_stop            gap 5 mm (7 consistent)       gap 7 mm (9 consistent)
+    air_spring_reservoir         none (2.5 consistent)         ratio 2.0 (1.5 consistent)
+
+(1519 s wall.)
+
+``--mode cli --workers 1 --budget 40 --duration 16`` (q = 4, ν = 3, 83.33 m/s, seed 1;
+reliability: stand-in trusted, the calibrations wrote no verdict yet):
+
+    high_conicity    unexplained_disagreement, 10 bands, best candidate lateral_bump_stop
+                     refused (weak evidence, at bound, weak signature, disagreement left)
+    carbody_bending  named, accepted: log predictive density (all bins) 52.4 -> 752.7,
+                     flagged share 1.8 % -> 0 %, gap on flagged bins 129.7 -> 0.050, on all
+                     bins 2.53 -> 0.039; 10.0 Hz found (truth 10)
+    null             consistent, 0 bands
+    primary_lateral_soft  unexplained_disagreement, 9 bands, best candidate
+                     lateral_bump_stop refused (weak evidence, weak signature, disagreement left)
+    sensor_rolled    unexplained_disagreement, 1 band, lateral_bump_stop refused (same reasons)
+    lateral_bump_stop  named, accepted: log predictive density -204.7 -> 638.8, flagged
+                     share 8.4 % -> 0 %, gap on flagged bins 24.6 -> 0.0059, all bins 2.87 -> 0.036
+    air_spring_reservoir  MISSED: unexplained_disagreement, 7 bands; the right candidate
+                     (score 416, explains 99.6 %, 0 % left) refused only because its fitted
+                     stiffness_ratio is 3.0 = the upper bound of its range, which is also the
+                     truth used here (NOMINAL); with the truth on a bound the at-bound rule
+                     cannot tell "identified" from "pinned"
+    yaw_damper_series_stiffness  named, accepted: log predictive density 2.6 -> 777.8,
+                     flagged share 9.3 % -> 0 %
+    in library 3/4 right, out of library 0/3 false names (3/3 flagged), null 0/1 flagged,
+    accepted augmented models better on all bins 3/3. Not run (time): wheel_out_of_roundness,
+    sensor_on_bracket, sensor_misplaced, a second speed, more seeds.
+
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
+import subprocess
+import sys
 import time
+import tomllib
+from pathlib import Path
 
+import tomli_w
+
+from susp_bo.data.measured import load_run, save_run
+from susp_bo.discrepancy.out_of_library import MODIFICATIONS, get_modification
 from susp_bo.discrepancy.problem import LinearSimulator
-from susp_bo.discrepancy.scenarios import scenario_spec, synthesize_problem
+from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_problem
 from susp_bo.discrepancy.workflow import run_workflow
+from susp_bo.rig.catalog import rig_path
 
 NOMINAL = {
     "carbody_bending": {"frequency_hz": 10.0},
@@ -36,44 +104,92 @@ LADDERS = {
     "wheel_out_of_roundness": ("amplitude_m", [3e-4, 1e-4, 5e-5, 2e-5, 1e-5]),
     "yaw_damper_series_stiffness": ("stiffness", [5e6, 1e7, 1.5e7, 2e7, 3e7]),
     "lateral_bump_stop": ("gap_m", [0.003, 0.005, 0.007, 0.009, 0.012]),
-    "air_spring_reservoir": ("stiffness_ratio", [3.0, 2.0, 1.5, 1.0, 0.5]),
+    "air_spring_reservoir": ("stiffness_ratio", [2.5, 2.0, 1.5, 1.0, 0.5]),  # 3.0 = its bound
 }
+SPEEDS = (55.56, 83.33)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--quick", action="store_true")
-    args = parser.parse_args()
+def _line(label: str, speed: float, noise: float, seed: int, report) -> str:
+    doc = report.to_dict()
+    margin = doc["margin"] if doc["margin"] is not None else float("nan")
+    g0, g1 = report.gap_before, report.gap_after
+    accepted = doc["augmented"]["accepted"] if doc["augmented"] else None
+    why = ""
+    if doc["verdict"] == "unexplained_disagreement" and doc["naming_check"]:
+        check = doc["naming_check"]
+        why = f" best {check['effect']} ({','.join(r['code'] for r in check['reasons'])})"
+    return (
+        f"{label:28s} {speed:5.1f} {noise:5.2f} {seed:4d}  {doc['verdict']:24s} "
+        f"{doc['named_effect']!s:28s} {margin:7.1f} bands {len(doc['flagged']):3d} "
+        f"gap {g0['value']:7.3g}->{g1['value']:<7.3g} all {g0['value_all_bins']:6.3g}->"
+        f"{g1['value_all_bins']:<6.3g} accepted {accepted}{why}"
+    )
+
+
+def fast_mode(quick: bool, parts: list[str]) -> None:
+    """The fast-path sweep of the module docstring (``parts`` of it)."""
     spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
     simulator = LinearSimulator()
-    seeds = [1] if args.quick else [1, 2, 3]
-    noises = [0.02] if args.quick else [0.01, 0.05]
-    speeds = [55.56, 83.33]
+    seeds = [1] if quick else [1, 2, 3]
+    noises = [0.02] if quick else [0.01, 0.05]
     started = time.perf_counter()
-    hits, total, ratios = 0, 0, {}
-    print(f"{'effect':28s} speed noise seed  {'named':28s} margin  gap before -> after")
+    if "names" in parts:
+        _fast_names(spec, simulator, seeds, noises)
+    if "outside" in parts:
+        _fast_outside(spec, simulator, seeds)
+    if "null" in parts:
+        _fast_null(spec, simulator, seeds, noises)
+    if "ladder" in parts:
+        _fast_ladder(spec, simulator)
+    print(f"\nwall time {time.perf_counter() - started:.0f} s")
+
+
+def _fast_names(spec, simulator, seeds, noises) -> None:
+    hits, total, ratios, worse_accepted, n_accepted = 0, 0, {}, 0, 0
+    print(f"{'case':28s} speed noise seed  {'verdict':24s} {'named':28s} margin")
     for name, values in NOMINAL.items():
-        for speed in speeds:
+        for speed in SPEEDS:
             for noise in noises:
                 for seed in seeds:
                     problem = synthesize_problem(spec, (name, values), nu=3, seed=seed,
                                                  noise_m_s2=noise, speed_m_s=speed)  # fmt: skip
                     report = run_workflow(problem, simulator)
-                    doc = report.to_dict()
+                    print(_line(name, speed, noise, seed, report), flush=True)
                     total += 1
-                    hits += doc["named_effect"] == name
-                    ratios.setdefault(name, []).append(report.gap_ratio)
-                    margin = doc["margin"] if doc["margin"] is not None else float("nan")
-                    before, after = report.gap_before["value"], report.gap_after["value"]
-                    print(f"{name:28s} {speed:5.1f} {noise:5.2f} {seed:4d}  "
-                          f"{doc['named_effect']!s:28s} {margin:7.1f}  "
-                          f"{before:8.3g} -> {after:.3g}")  # fmt: skip
-    print(f"\nnaming accuracy: {hits}/{total} = {hits / total:.3f}")
+                    hits += report.named_effect == name
+                    ratios.setdefault(name, []).append(report.gap_ratio_all_bins)
+                    if report.accepted:
+                        n_accepted += 1
+                        worse_accepted += not (
+                            report.after.log_predictive_density
+                            > report.before.log_predictive_density
+                        )
+    print(f"\nin library: right names {hits}/{total} = {hits / total:.3f}; accepted augmented "
+          f"models {n_accepted}, of them worse on all bins: {worse_accepted}")  # fmt: skip
     for name, values in ratios.items():
-        print(f"  gap ratio after/before, {name:28s} median {statistics.median(values):.3g} "
-              f"max {max(values):.3g}")  # fmt: skip
+        print(f"  gap ratio after/before on all bins, {name:28s} median "
+              f"{statistics.median(values):.3g} max {max(values):.3g}")  # fmt: skip
+
+
+def _fast_outside(spec, simulator, seeds) -> None:
+    false_names, flagged, n_ool = 0, 0, 0
+    print()
+    for kind in MODIFICATIONS:
+        for speed in SPEEDS:
+            for seed in seeds:
+                problem = synthesize_problem(spec, None, nu=3, seed=seed, noise_m_s2=0.02,
+                                             speed_m_s=speed, modification=kind)  # fmt: skip
+                report = run_workflow(problem, simulator)
+                print(_line(kind, speed, 0.02, seed, report), flush=True)
+                n_ool += 1
+                false_names += report.named_effect is not None
+                flagged += bool(report.before.bands)
+    print(f"\nout of library: false names {false_names}/{n_ool}; flagged {flagged}/{n_ool}")
+
+
+def _fast_null(spec, simulator, seeds, noises) -> None:
     null_any, null_bins, n_null = 0, [], 0
-    for speed in speeds:
+    for speed in SPEEDS:
         for noise in noises:
             for seed in [*seeds, 7, 8]:
                 problem = synthesize_problem(spec, None, nu=3, seed=100 + seed,
@@ -84,19 +200,168 @@ def main() -> None:
                 null_bins.append(report.before.flagged_fraction)
     print(f"\nnull data sets with a flag or a name: {null_any}/{n_null} "
           f"(BH q = 0.05); mean flagged-bin share {statistics.mean(null_bins):.4f}")  # fmt: skip
-    print("\nsmallest amplitude still named (83.33 m/s, noise 0.02, seed 1):")
-    for name, (key, ladder) in LADDERS.items():
-        smallest = None
-        for value in ladder:
-            values = {**NOMINAL[name], key: value}
-            problem = synthesize_problem(spec, (name, values), nu=3, seed=1, noise_m_s2=0.02,
-                                         speed_m_s=83.33)  # fmt: skip
-            report = run_workflow(problem, simulator)
-            if report.named_effect != name:
-                break
-            smallest = value
-        print(f"  {name:28s} {key} = {smallest} (ladder {ladder})")
-    print(f"\nwall time {time.perf_counter() - started:.0f} s")
+
+
+def _fast_ladder(spec, simulator) -> None:
+    print("\nsmallest amplitude still named (noise 0.02, seed 1):")
+    for speed in SPEEDS:
+        for name, (key, ladder) in LADDERS.items():
+            smallest, why = None, ""
+            for value in ladder:
+                values = {**NOMINAL[name], key: value}
+                problem = synthesize_problem(spec, (name, values), nu=3, seed=1, noise_m_s2=0.02,
+                                             speed_m_s=speed)  # fmt: skip
+                report = run_workflow(problem, simulator)
+                if report.named_effect != name:
+                    check = report.naming_check
+                    why = f"{report.verdict}" + (
+                        f" ({check.effect}: {','.join(r['code'] for r in check.reasons)})"
+                        if check is not None and check.reasons
+                        else ""
+                    )
+                    break
+                smallest, why = value, ""
+            print(f"  {speed:5.2f} m/s {name:28s} {key} = {smallest} (ladder {ladder}; next: "
+                  f"{why or 'named'})", flush=True)  # fmt: skip
+
+
+# ---------------------------------------------------------------- command-line chain
+
+
+def base_rig_document(duration_s: float) -> dict:
+    """The maintainer's base rig as a rig file: rigid yaw dampers, band 0.3–40 Hz."""
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    spec = scenario_spec(duration_s=duration_s, warm_up_s=4.0)
+    document["rig"]["name"] = "hst_trailer_base"
+    document["yaw_damper"]["series_stiffness"] = 5.0e7
+    document["simulation"].update(duration_s=duration_s, warm_up_s=4.0)
+    document["spectrum"].update(f_max_hz=40.0, n_frequencies=spec.spectrum.n_frequencies)
+    return document
+
+
+def _cli(*arguments: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "susp_bo", *arguments], capture_output=True,
+                          text=True, check=False)  # fmt: skip
+
+
+def cli_case(case: str, folder: Path, args: argparse.Namespace) -> dict:
+    """synth → calibrate → diagnose for one case; returns the summary row."""
+    folder.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    base = base_rig_document(args.duration)
+    base_file = folder / "base_rig.toml"
+    base_file.write_text(tomli_w.dumps(base))
+    truth = folder / "truth.toml"
+    truth.write_text(tomli_w.dumps(WORN_TRUTH))
+    data = folder / "measured"
+    common = ["--out", str(data), "--truth", str(truth), "--nu", "3", "--seed", str(args.seed),
+              "--noise", "0.02", "--speed", str(args.speed)]  # fmt: skip
+    if case in NOMINAL:
+        values = ",".join(f"{k}={v}" for k, v in NOMINAL[case].items())
+        done = _cli("synth", str(base_file), *common, "--effect", f"{case}:{values}")
+    elif case in MODIFICATIONS:
+        change = get_modification(case)
+        generator = folder / "generator_rig.toml"
+        generator.write_text(tomli_w.dumps(change.apply_document(base)))
+        done = _cli("synth", str(generator), *common)
+        for path in sorted(data.glob("run_*.h5")):  # a mis-mounted sensor: the records change
+            save_run(change.apply_run(load_run(path)), path)
+    else:
+        done = _cli("synth", str(base_file), *common)
+    if done.returncode:
+        return {"case": case, "error": "synth: " + done.stderr[-500:]}
+    study = folder / "study.toml"
+    study.write_text(tomli_w.dumps({
+        "rig": str(base_file), "data": str(data), "out": str(folder / "result"),
+        "parameters": list(WORN_TRUTH),
+        "budget": {"max_evaluations": args.budget, "initial_design": args.budget // 2,
+                   "batch_size": 4},
+        "executor": {"workers": args.workers},
+        "mcmc": {"chains": 64, "draws": 1000, "warmup": 300},
+    }))  # fmt: skip
+    done = _cli("calibrate", str(study))
+    if done.returncode:
+        return {"case": case, "error": "calibrate: " + done.stderr[-500:]}
+    result_file = folder / "result" / "result.json"
+    payload = json.loads(result_file.read_text())
+    stand_in = "reliability" not in payload
+    if stand_in:  # before the reliability verdict exists: treated as trusted, and said so
+        payload["reliability"] = {"verdict": "trusted", "reasons": [],
+                                  "sentence": "stand-in: no reliability verdict yet"}  # fmt: skip
+        result_file.write_text(json.dumps(payload, indent=2))
+    done = _cli("diagnose", str(folder / "result"), "--out", str(folder / "diagnosis"),
+                "--budget", str(args.budget))  # fmt: skip
+    if done.returncode:
+        return {"case": case, "error": "diagnose: " + done.stderr[-500:]}
+    doc = json.loads((folder / "diagnosis" / "discrepancy.json").read_text())
+    augmented = doc.get("augmented") or {}
+    return {
+        "case": case,
+        "kind": "in" if case in NOMINAL else ("out" if case in MODIFICATIONS else "null"),
+        "verdict": doc["verdict"],
+        "named": doc.get("named_effect"),
+        "bands": len(doc.get("flagged") or []),
+        "flagged_fraction": (doc.get("detection") or {}).get("flagged_fraction"),
+        "accepted": augmented.get("accepted"),
+        "lpd": [augmented.get(f"log_predictive_density_{s}") for s in ("before", "after")],
+        "share": [augmented.get(f"flagged_fraction_{s}") for s in ("before", "after")],
+        "best": (doc.get("naming_check") or {}).get("effect"),
+        "reasons": [r["code"] for r in (doc.get("naming_check") or {}).get("reasons", [])],
+        "reliability": "stand-in trusted" if stand_in else payload["reliability"]["verdict"],
+        "wall_s": round(time.perf_counter() - started),
+    }
+
+
+def cli_mode(args: argparse.Namespace) -> None:
+    """The command-line chain of the module docstring, one case after the other."""
+    out = Path(args.out)
+    rows = []
+    print(f"CLI chain: speed {args.speed} m/s, budget {args.budget}, duration {args.duration} s, "
+          f"workers {args.workers}, seed {args.seed}", flush=True)  # fmt: skip
+    for case in args.cases:
+        row = cli_case(case, out / case, args)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    (out / "summary.json").write_text(json.dumps(rows, indent=2))
+    ok = [r for r in rows if "error" not in r]
+    inside = [r for r in ok if r["kind"] == "in"]
+    outside = [r for r in ok if r["kind"] == "out"]
+    null = [r for r in ok if r["kind"] == "null"]
+    accepted = [r for r in ok if r["accepted"]]
+    print(f"\nin library: right names {sum(r['named'] == r['case'] for r in inside)}/{len(inside)}")
+    print(
+        f"out of library: false names {sum(r['named'] is not None for r in outside)}/"
+        f"{len(outside)}, flagged {sum(r['bands'] > 0 for r in outside)}/{len(outside)}"
+    )
+    print(f"null: data sets with flagged bands {sum(r['bands'] > 0 for r in null)}/{len(null)}")
+    print(
+        f"accepted augmented models better on all bins: "
+        f"{sum(r['lpd'][1] > r['lpd'][0] for r in accepted)}/{len(accepted)}"
+    )
+    print(f"errors: {len(rows) - len(ok)}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mode", choices=("fast", "cli"), default="fast")
+    parser.add_argument("--quick", action="store_true", help="fast mode: one seed, one noise")
+    parser.add_argument("--parts", nargs="+", choices=("names", "outside", "null", "ladder"),
+                        default=["names", "outside", "null", "ladder"],
+                        help="fast mode: which parts to run")  # fmt: skip
+    parser.add_argument("--out", default="discrepancy_naming_cli", help="cli mode: work folder")
+    parser.add_argument("--cases", nargs="+",
+                        default=[*NOMINAL, *MODIFICATIONS, "null"],
+                        help="cli mode: effect names, out-of-library kinds, 'null'")  # fmt: skip
+    parser.add_argument("--budget", type=int, default=60, help="cli mode: evaluations")
+    parser.add_argument("--duration", type=float, default=16.0, help="cli mode: record (s)")
+    parser.add_argument("--speed", type=float, default=83.33, help="cli mode: speed (m/s)")
+    parser.add_argument("--workers", type=int, default=1, help="cli mode: worker processes")
+    parser.add_argument("--seed", type=int, default=1, help="cli mode: data seed")
+    args = parser.parse_args()
+    if args.mode == "fast":
+        fast_mode(args.quick, args.parts)
+    else:
+        cli_mode(args)
 
 
 if __name__ == "__main__":

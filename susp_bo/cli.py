@@ -165,6 +165,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=integer(2),
         help="likelihood evaluations of the recalibration (default: the study's)",
     )
+    diagnose.add_argument(
+        "--force",
+        action="store_true",
+        help="run the detection even when the calibration is not trusted (experts; the "
+        "findings are labelled and kept apart, the verdict stays calibration_not_trusted)",
+    )
     diagnose.set_defaults(handler=_diagnose)
 
     from susp_bo.commands.monitor import add_parser as add_monitor_parser

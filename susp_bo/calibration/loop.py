@@ -315,6 +315,7 @@ def calibrate(
     on_iteration: Callable[[IterationReport], None] | None = None,
     design: np.ndarray | None = None,
     expected_at_truth: tuple[float, float] | None = None,
+    initial_points: np.ndarray | None = None,
 ) -> CalibrationResult:
     """Bayesian calibration of w on C_w from log L evaluations (the paper's four steps).
 
@@ -332,6 +333,9 @@ def calibrate(
         expected_at_truth: (mean, sd) of log L at the true parameters expected under the
             output-error model (needs the model, not the truth), when it provides one; the
             verdict then also checks the best log L against it.
+        initial_points: (m x q) points (physical units, clipped to the bounds) evaluated
+            with the design, which has m points fewer (a warm start: e.g. a previous
+            fit's maximum); None = none.
 
     Returns:
         The :class:`CalibrationResult` (with its reliability verdict).
@@ -364,9 +368,19 @@ def calibrate(
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
     bar = progress_bar(total=budget, desc="log L evaluations", unit="eval", disable=not progress)
+    extra = np.empty((0, q)) if initial_points is None else np.atleast_2d(initial_points)
     if design is None:
-        x = space_filling_design(n0, b, _seed(settings.seed, 0, 0), settings.design_method)
+        if extra.shape[1:] != (q,) or extra.shape[0] >= n0:
+            raise ValueError(
+                f"initial_points: shape {extra.shape}; expected (m x {q}) with m < {n0}"
+            )
+        x = space_filling_design(
+            n0 - len(extra), b, _seed(settings.seed, 0, 0), settings.design_method
+        )
+        x = np.vstack([x, np.clip(extra, b[0], b[1])])
     else:
+        if initial_points is not None:
+            raise ValueError("design, initial_points: give one of them, not both")
         x = np.array(design, dtype=np.float64, copy=True)
         if x.ndim != 2 or x.shape[1] != q or not 2 <= x.shape[0] <= budget:
             raise ValueError(f"design: shape {x.shape}; expected (n0 x {q}), 2 <= n0 <= {budget}")

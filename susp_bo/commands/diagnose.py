@@ -1,26 +1,39 @@
 """``susp-bo diagnose RESULT_DIR --out DIR``: the model-discrepancy workflow on a calibration.
 
-Reads the study of ``RESULT_DIR`` (``study.toml``, ``result.json``, the measured
-runs it names), then (:mod:`susp_bo.discrepancy.workflow`):
+0. reads the calibration's reliability verdict (``result.json["reliability"]``,
+   the shared contract). Not ``trusted`` (or absent: a result from an older
+   version) → ``verdict: "calibration_not_trusted"`` with the calibration's
+   reasons and what to do (a larger budget, ``--resume``), no band reported as
+   model discrepancy, exit code 0 and the sentence on stderr: the residuals of an
+   unfinished fit are not missing physics. ``--force`` runs the workflow anyway;
+   its findings are then kept under ``forced_diagnosis`` and
+   ``residual_bands_untrusted_fit``, never as the answer.
+
+Then, on a trusted calibration, reads the study of ``RESULT_DIR`` (``study.toml``,
+the measured runs it names) and (:mod:`susp_bo.discrepancy.workflow`):
 
 1. checks the calibrated model — posterior draws (joint MAP plus Gaussian draws
    with the posterior sd) re-simulated with the study's simulator (PyBullet) on
    every measured track — and flags bands (BH at q = 0.05);
 2. ranks the candidate effects by refit evidence on the linearised rig (fast
    path; base and every candidate refitted on it, so its own model error
-   cancels in the comparison);
+   cancels in the comparison) and applies the naming rule
+   (:mod:`susp_bo.discrepancy.verdict`): named, or unexplained disagreement;
 3. recalibrates the rig with the named effect switched on and its parameters
    appended to C_w, with the study's own loop (design, kriging, EGO, MCMC) and
    budget, a new evaluation store in ``DIR/augmented``, the same measured
-   spectra, tracks and output error; the ranking refit is reused to place the
-   effect parameters' window (±max(4 sd, 10 % of the admissible range) around
-   its maximum), so a small budget does not have to find the effect again;
-4. checks the augmented model the same way and writes ``discrepancy.json``
-   (flagged, ranking, named_effect, gap_before, gap_after, …) and the figures.
+   spectra, tracks and output error, **warm-started from the ranking's refit**:
+   every parameter is calibrated in a window around the refit (base parameters
+   ±max(4 sd, 15 % of the range), effect parameters ±max(4 sd, 10 %), within C_w)
+   and the refit itself is one of the design's points;
+4. checks the augmented model the same way and accepts it only if it beats the
+   base model over all bins (:func:`~susp_bo.discrepancy.verdict.accept_augmented`);
+   writes ``discrepancy.json`` (verdict, flagged, ranking, named_effect, gap_before,
+   gap_after, …) and the figures, and the verdict's sentence on stderr.
 
-Optional attributes of ``args`` (for when the command line grows them):
-``simulator`` (``pybullet`` default, or ``linear`` for the fast path
-throughout) and ``budget`` (evaluations of the recalibration).
+Optional attributes of ``args``: ``simulator`` (``pybullet`` default, or
+``linear`` for the fast path throughout), ``budget`` (evaluations of the
+recalibration) and ``force``.
 """
 
 from __future__ import annotations
@@ -56,6 +69,20 @@ def _fit_from_result(study: Any, payload: dict[str, Any]) -> Any:
     )
 
 
+def refit_window(fit: Any, names: tuple[str, ...], bounds: np.ndarray, n_base: int) -> np.ndarray:
+    """The recalibration's box (2 x q): ±max(4 sd, 15 % of the range) around the refit for
+    the ``n_base`` base parameters, ±max(4 sd, 10 %) for the effect's, within ``bounds``."""
+    values, sd = fit.parameters(), dict(zip(fit.names, fit.sd))
+    window = np.array(bounds, dtype=np.float64, copy=True)
+    for i, name in enumerate(names):
+        lower, upper = bounds[0, i], bounds[1, i]
+        share = 0.15 if i < n_base else 0.10
+        half = max(4.0 * float(sd.get(name, 0.0)), share * (upper - lower))
+        centre = min(max(values[name], lower), upper)
+        window[0, i], window[1, i] = max(lower, centre - half), min(upper, centre + half)
+    return window
+
+
 def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bool) -> Any:
     """``recalibrate(best)``: the study loop on the augmented rig (PyBullet)."""
     from susp_bo.calibration.loop import calibrate
@@ -75,16 +102,11 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
         spec = with_effect(study.spec, best.effect, best.options, calibrate=True)
         extra = [p for p in effect.parameters if p.calibrated]
         names = tuple(study.names) + tuple(effect.parameter_name(p.key) for p in extra)
-        # reuse the ranking refit: the effect's parameters are calibrated in a window of
-        # ±max(4 sd, 10 % of the range) around the fast path's maximum (within the range)
-        fitted = best.fit.parameters()
-        sd = dict(zip(best.fit.names, best.fit.sd))
-        window = []
-        for p in extra:
-            name = effect.parameter_name(p.key)
-            half = max(4.0 * sd[name], 0.1 * (p.upper - p.lower))
-            window.append((max(p.lower, fitted[name] - half), min(p.upper, fitted[name] + half)))
-        bounds = np.hstack([study.bounds, np.array(window).T])
+        # warm start from the ranking refit: a window around its maximum, the refit in the design
+        bounds = np.hstack([study.bounds, np.array([[p.lower for p in extra],
+                                                    [p.upper for p in extra]])])  # fmt: skip
+        bounds = refit_window(best.fit, names, bounds, len(study.names))
+        start = np.array([best.fit.parameters()[n] for n in names])
         folder = out / "augmented"
         folder.mkdir(parents=True, exist_ok=True)
         (folder / STORE_NAME).unlink(missing_ok=True)
@@ -104,12 +126,24 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
             make_executor(workers=config.workers, scheduler=config.scheduler) as executor,
         ):
             evaluator = study_evaluator(study, store, executor, progress, spec, names)
-            result = calibrate(evaluator, bounds, names, settings, progress=progress)
+            result = calibrate(
+                evaluator, bounds, names, settings, progress=progress, initial_points=start[None]
+            )
         summary = result.summary.to_dict()
         span = bounds[1] - bounds[0]
         sd = np.maximum(np.asarray(summary["sd"], dtype=np.float64), 1e-9 * span)
         (folder / "result.json").write_text(
-            json.dumps({"parameters": list(names), **json_ready(summary)}, indent=2) + "\n"
+            json.dumps(
+                {
+                    "parameters": list(names),
+                    "bounds": bounds.tolist(),
+                    "warm_start": {"ranking_refit": start.tolist(), "window": bounds.tolist()},
+                    "n_evaluations": int(result.n_evaluations),
+                    **json_ready(summary),
+                },
+                indent=2,
+            )
+            + "\n"
         )
         return Fit(
             spec=spec,
@@ -124,12 +158,36 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
     return recalibrate
 
 
+def _not_trusted_document(
+    reliability: Any, result_dir: Path, payload: dict[str, Any], rig: str | None
+) -> dict[str, Any]:
+    """``discrepancy.json`` of a calibration that is not trusted (no detection run)."""
+    from susp_bo.discrepancy.verdict import not_trusted_sentence
+
+    sentence = not_trusted_sentence(reliability, str(result_dir), payload.get("n_evaluations"))
+    return {
+        "verdict": "calibration_not_trusted",
+        "sentence": sentence,
+        "calibration_reliability": reliability.to_dict(),
+        "flagged": [],
+        "ranking": [],
+        "named_effect": None,
+        "gap_before": None,
+        "gap_after": None,
+        "residual_bands_untrusted_fit": None,
+        "forced": False,
+        "result_dir": str(result_dir),
+        "rig": rig,
+    }
+
+
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run the workflow on ``args.result_dir`` and write ``discrepancy.json`` and figures."""
     from susp_bo.calibration.likelihood import OutputError, estimate_output_error
     from susp_bo.calibration.study import RESULT_NAME, StudyError, prepare_study
     from susp_bo.discrepancy.figures import write_figures
     from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator, make_simulator
+    from susp_bo.discrepancy.verdict import calibration_reliability
     from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
     from susp_bo.study_config import load_study_config
 
@@ -143,8 +201,23 @@ def run_diagnose(args: argparse.Namespace) -> int:
         )
     kind = getattr(args, "simulator", None) or "pybullet"
     budget = getattr(args, "budget", None)
+    force = bool(getattr(args, "force", False))
+    if budget is not None and budget < 2:
+        raise UsageError(f"--budget: got {budget}; expected an integer >= 2 evaluations")
     try:
         payload = json.loads(result_file.read_text())
+    except (ValueError, OSError) as error:
+        raise UsageError(f"RESULT_DIR: {result_file} is not readable JSON ({error})") from error
+    if not isinstance(payload, dict):
+        raise UsageError(f"RESULT_DIR: {result_file} holds no JSON object")
+    reliability = calibration_reliability(payload)
+    if not reliability.trusted and not force:
+        out = output_folder(args.out)
+        document = _not_trusted_document(reliability, result_dir, payload, payload.get("rig"))
+        write_json(out / "discrepancy.json", json_ready(document))
+        print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
+        return 0
+    try:
         config = dataclasses.replace(load_study_config(config_file), out=result_dir.resolve())
         study = prepare_study(config, resume=True)
         simulator = make_simulator(kind)
@@ -168,7 +241,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
     )
     print(
         f"susp-bo diagnose: {len(study.runs)} runs of {study.spec.name}, checks on {kind}, "
-        "ranking on the linearised rig",
+        "ranking on the linearised rig"
+        + ("; FORCED on a calibration that is not trusted" if not reliability.trusted else ""),
         file=sys.stderr,
     )
     fast = LinearSimulator() if kind == "pybullet" else simulator
@@ -184,13 +258,28 @@ def run_diagnose(args: argparse.Namespace) -> int:
     )
     document = report.to_dict()
     document.update(result_dir=str(result_dir), rig=study.spec.name)
+    document["calibration_reliability"] = reliability.to_dict()
+    if not reliability.trusted:  # --force: findings kept aside, labelled, never the answer
+        forced = document
+        document = _not_trusted_document(reliability, result_dir, payload, study.spec.name)
+        document.update(
+            forced=True,
+            residual_bands_untrusted_fit=forced["flagged"],
+            forced_diagnosis=forced,
+            sentence=document["sentence"] + " FORCED: the workflow ran anyway; what it "
+            f"would say on this unfinished fit is under forced_diagnosis ({forced['verdict']}: "
+            f"{len(forced['flagged'])} residual bands), not a model-discrepancy finding.",
+        )
     write_json(out / "discrepancy.json", json_ready(document))
     write_figures(report, out)
-    named = report.named_effect or "none (no significant disagreement explained)"
-    print(
-        f"susp-bo diagnose: {len(report.before.bands)} flagged bands; named effect: {named}; "
-        f"gap {report.gap_before['value']:.3g} -> {report.gap_after['value']:.3g}; "
-        f"results in {out}",
-        file=sys.stderr,
-    )
+    print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
+    g0, g1 = report.gap_before, report.gap_after
+    if report.verdict == "named" and reliability.trusted:
+        print(
+            f"susp-bo diagnose: gap on the bins flagged before {g0['value']:.3g} -> "
+            f"{g1['value']:.3g}; on all bins {g0['value_all_bins']:.3g} -> "
+            f"{g1['value_all_bins']:.3g}; answer: {report.answer_model} model",
+            file=sys.stderr,
+        )
+    print(f"susp-bo diagnose: results in {out}", file=sys.stderr)
     return 0

@@ -196,17 +196,22 @@ def gap_metrics(detection: Detection, bins: FloatArray) -> dict[str, float]:
     """The discrepancy gap on a set of bins (usually those flagged before adding an effect).
 
     Returns:
-        ``value`` = mean Z² over ``bins`` (1 ≈ consistent with B; the headline gap),
-        ``residual_energy_db`` = rms residual over ``bins`` in dB, ``flagged_fraction``
-        = share of all bins flagged, ``n_bins``, and ``log_predictive_density``.
-        Over all bins when ``bins`` is empty.
+        ``value`` = mean Z² over ``bins`` (1 ≈ consistent with B; the gap where the
+        disagreement was), ``residual_energy_db`` = rms residual over ``bins`` in dB,
+        ``value_all_bins`` and ``residual_energy_db_all_bins`` = the same over all
+        C × F bins (an added effect must not buy the first with the second),
+        ``flagged_fraction`` = share of all bins flagged, ``n_bins``, and
+        ``log_predictive_density`` (all bins). Over all bins when ``bins`` is empty.
     """
     mask = np.asarray(bins, dtype=bool)
     if not mask.any():
         mask = np.ones_like(mask)
+    z, residual = detection.z, detection.residual
     return {
-        "value": float(np.mean(detection.z[mask] ** 2)),
-        "residual_energy_db": float(DB_PER_NEPER * np.sqrt(np.mean(detection.residual[mask] ** 2))),
+        "value": float(np.mean(z[mask] ** 2)),
+        "residual_energy_db": float(DB_PER_NEPER * np.sqrt(np.mean(residual[mask] ** 2))),
+        "value_all_bins": float(np.mean(z**2)),
+        "residual_energy_db_all_bins": float(DB_PER_NEPER * np.sqrt(np.mean(residual**2))),
         "flagged_fraction": detection.flagged_fraction,
         "n_bins": int(mask.sum()),
         "log_predictive_density": detection.log_predictive_density,

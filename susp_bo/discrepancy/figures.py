@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.discrepancy.detection import DB_PER_NEPER, Detection
-from susp_bo.discrepancy.workflow import DiagnosisReport
+from susp_bo.discrepancy.report import DiagnosisReport
 
 
 def _z_limit(*detections: Detection) -> float:
@@ -66,11 +66,16 @@ def before_after_figure(report: DiagnosisReport, path: Path | None = None) -> ob
     after = report.after if report.after is not None else report.before
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
     limit = _z_limit(report.before, after)  # one colour bar for both maps
-    _heat_map(axes[0], report.before, edges, f"before: gap {report.gap_before['value']:.3g}", limit)
+    _heat_map(axes[0], report.before, edges, "before", limit)
     label = report.named_effect or "nothing added"
-    image = _heat_map(
-        axes[1], after, edges, f"after ({label}): gap {report.gap_after['value']:.3g}", limit
-    )
+    title = f"after ({label}): gap {report.gap_after['value']:.3g}"
+    if report.after is None:
+        title = f"{report.verdict}: nothing added, base model kept"
+    elif not report.accepted:
+        title += " — not better: base model kept"
+    image = _heat_map(axes[1], after, edges, title, limit)
+    axes[0].set_title(f"before ({report.verdict}): gap {report.gap_before['value']:.3g}",
+                      fontsize=9)  # fmt: skip
     fig.colorbar(image, ax=axes[:2], label="Z")
     worst = (
         report.problem.spec.channels.index(report.before.bands[0].channel)

@@ -26,6 +26,7 @@ from susp_bo.calibration.evaluation import TrackRun
 from susp_bo.calibration.likelihood import estimate_output_error
 from susp_bo.data.synthetic import track_seed
 from susp_bo.discrepancy.effects import maintainer_base, with_effect
+from susp_bo.discrepancy.out_of_library import get_modification
 from susp_bo.discrepancy.problem import DiagnosisProblem
 from susp_bo.rig.linear import LinearisedRig
 from susp_bo.rig.simulator import Rig, synthetic_track
@@ -68,6 +69,7 @@ def synthesize_problem(
     noise_m_s2: float = 0.0,
     speed_m_s: float | None = None,
     generator: str = "linear",
+    modification: str | None = None,
 ) -> DiagnosisProblem:
     """Measured spectra with a hidden effect, paired with their tracks, for the base ``spec``.
 
@@ -80,6 +82,8 @@ def synthesize_problem(
         noise_m_s2: white sensor noise (m/s² rms); also the model's known noise floor.
         speed_m_s: constant speed (default: the rig's).
         generator: ``linear``, ``pybullet`` or ``pybullet_linear``.
+        modification: an out-of-library change of the generator
+            (:data:`~.out_of_library.MODIFICATIONS`), or None.
     """
     if nu < 2:
         raise ValueError(f"nu: got {nu}; need >= 2 runs to estimate σ_B")
@@ -93,6 +97,10 @@ def synthesize_problem(
         reference.update(
             {k: v for k, v in true_spec.parameters.items() if k.startswith(f"{effect[0]}_")}
         )
+    change = get_modification(modification) if modification is not None else None
+    if change is not None:
+        true_spec = change.apply_spec(true_spec)
+        reference.update(change.parameters)
     sim = spec.simulation
     total = sim.warm_up_s + sim.duration_s
     profile = SpeedProfile.constant(speed, total)
@@ -112,6 +120,10 @@ def synthesize_problem(
                     f"generator: got {generator!r}; allowed linear, pybullet, pybullet_linear"
                 )
             signals = np.array(response.accelerations_m_s2, dtype=np.float64)
+            if change is not None:
+                signals = change.apply_signals(
+                    signals, tuple(response.channels), response.sample_rate_hz
+                )
             if noise_m_s2 > 0:
                 signals += np.random.default_rng([seed, index, 2]).normal(
                     0.0, noise_m_s2, signals.shape

@@ -6,22 +6,26 @@
    terms.
 2. **Detection** (:mod:`.detection`): K posterior draws re-simulated on every
    measured track; standardised residuals; BH at q; flagged bands.
-3. **Naming** (:mod:`.ranking`): every candidate effect refitted; the effect
-   named is the best *score* (penalised log-likelihood gain) if it is > 0 and
-   something was flagged; otherwise ``named_effect`` is None.
+3. **Naming** (:mod:`.ranking`, :mod:`.verdict`): every candidate effect refitted
+   and ranked by score (penalised log-likelihood gain); the best is named only if
+   it passes the naming rule (:class:`~.verdict.NamingRule`: evidence, no effect
+   parameter at a bound, explains the flagged pattern, leaves no comparable
+   disagreement); otherwise the verdict is ``unexplained_disagreement``.
 4. **Add and recalibrate.** The named effect's refit is the augmented model's
-   maximum; its Laplace posterior gives the draws of the after-check (the same
-   machinery as the base fit; the command line can recalibrate with the study
-   loop instead, see :mod:`susp_bo.commands.diagnose`).
-5. **Gap** (:func:`~susp_bo.discrepancy.detection.gap_metrics`): mean Z² over
-   the bins flagged before, residual energy (dB) there, flagged fraction and
-   posterior predictive log density — before and after.
+   maximum (or the command line recalibrates with the study loop, warm-started
+   there, see :mod:`susp_bo.commands.diagnose`). The augmented model is accepted
+   only if it beats the base model over *all* bins (log predictive density up,
+   flagged share down, :func:`~.verdict.accept_augmented`); a recalibration that
+   ends worse falls back to the ranking's refit when that passes, else the base
+   model stays the answer.
+5. **Gap** (:func:`~susp_bo.discrepancy.detection.gap_metrics`): mean Z² and
+   residual energy (dB) over the bins flagged before and over all bins, flagged
+   fraction and posterior predictive log density — before and after.
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -29,9 +33,12 @@ from typing import Any
 import numpy as np
 
 from susp_bo.discrepancy.detection import Detection, gap_metrics, predictive_check
+from susp_bo.discrepancy.effects import get_effect
 from susp_bo.discrepancy.fitting import Fit, fit_model
 from susp_bo.discrepancy.problem import DiagnosisProblem, Simulator
 from susp_bo.discrepancy.ranking import RankedEffect, rank_effects
+from susp_bo.discrepancy.report import DiagnosisReport
+from susp_bo.discrepancy.verdict import NamingCheck, NamingRule, accept_augmented, check_naming
 
 
 @dataclass(frozen=True)
@@ -45,6 +52,7 @@ class WorkflowSettings:
         candidates: effect names to rank (None = the whole library).
         max_iterations: least-squares iterations per refit.
         polish_base: refit the given base model to its maximum first.
+        rule: the naming rule's thresholds (:class:`~.verdict.NamingRule`).
     """
 
     q: float = 0.05
@@ -53,6 +61,7 @@ class WorkflowSettings:
     candidates: tuple[str, ...] | None = None
     max_iterations: int = 12
     polish_base: bool = True
+    rule: NamingRule = field(default_factory=NamingRule)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.q < 1.0:
@@ -63,74 +72,6 @@ class WorkflowSettings:
             )
         if self.max_iterations < 1:
             raise ValueError(f"WorkflowSettings.max_iterations: got {self.max_iterations}; >= 1")
-
-
-@dataclass(frozen=True)
-class DiagnosisReport:
-    """Everything the workflow found (``to_dict`` is ``discrepancy.json``)."""
-
-    problem: DiagnosisProblem
-    base: Fit
-    before: Detection
-    ranking: tuple[RankedEffect, ...]
-    named_effect: str | None
-    augmented: Fit | None
-    after: Detection | None
-    gap_before: dict[str, float]
-    gap_after: dict[str, float]
-    simulator: str
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def gap_ratio(self) -> float:
-        """gap_after / gap_before of the headline value (1 when nothing was added)."""
-        return self.gap_after["value"] / self.gap_before["value"]
-
-    def parameter_table(self) -> list[dict[str, Any]]:
-        """Base parameters before and after adding the effect, with the truth when known."""
-        truth = self.problem.reference or {}
-        after = self.augmented.parameters() if self.augmented is not None else {}
-        rows = []
-        for name, value in self.base.parameters().items():
-            row: dict[str, Any] = {"name": name, "before": value, "after": after.get(name)}
-            row["truth"] = truth.get(name)
-            rows.append(row)
-        if self.augmented is not None:
-            for name, value in after.items():
-                if name not in self.base.names:
-                    rows.append({"name": name, "before": None, "after": value,
-                                 "truth": truth.get(name)})  # fmt: skip
-        return rows
-
-    def to_dict(self) -> dict[str, Any]:
-        """The ``discrepancy.json`` content (physical units)."""
-        ranking = [r.to_dict() for r in self.ranking]
-        scores = [r.score for r in self.ranking if math.isfinite(r.score)]
-        margin = scores[0] - scores[1] if len(scores) >= 2 else None
-        return {
-            "flagged": [band.to_dict() for band in self.before.bands],
-            "ranking": ranking,
-            "named_effect": self.named_effect,
-            "margin": margin,
-            "gap_before": self.gap_before,
-            "gap_after": self.gap_after,
-            "gap_ratio": self.gap_ratio,
-            "flagged_after": [] if self.after is None else [b.to_dict() for b in self.after.bands],
-            "parameters": self.parameter_table(),
-            "detection": {
-                "q": self.before.q,
-                "n_bins": int(self.before.z.size),
-                "flagged_fraction": self.before.flagged_fraction,
-                "channels": list(self.before.channels),
-                "frequencies_hz": self.before.frequencies_hz.tolist(),
-            },
-            "base_log_likelihood": self.base.log_likelihood,
-            "augmented_log_likelihood": None
-            if self.augmented is None
-            else self.augmented.log_likelihood,
-            "simulator": self.simulator,
-            **self.extra,
-        }
 
 
 def check(
@@ -223,10 +164,13 @@ def _run(
         base = fit_base(problem, simulator, base.w, settings.max_iterations)
     before = check(problem, simulator, base, settings)
     bins = before.flagged
+    gap = gap_metrics(before, bins)
     name = simulator.name if fast is simulator else f"{simulator.name} (ranking: {fast.name})"
+    common = {"problem": problem, "base": base, "before": before, "gap_before": gap,
+              "simulator": name}  # fmt: skip
     if not before.bands:
-        gap = gap_metrics(before, bins)
-        return DiagnosisReport(problem, base, before, (), None, None, None, gap, gap, name)
+        return DiagnosisReport(**common, ranking=(), named_effect=None, augmented=None,
+                               after=None, gap_after=gap, verdict="consistent")  # fmt: skip
     ranking_base = base if fast is simulator else fit_base(problem, fast, base.w)
     ranking = tuple(
         rank_effects(
@@ -234,20 +178,68 @@ def _run(
         )
     )
     best = ranking[0] if ranking else None
-    if best is None or best.fit is None or not best.score > 0.0:
-        gap = gap_metrics(before, bins)
-        return DiagnosisReport(problem, base, before, ranking, None, None, None, gap, gap, name)
+    unexplained = {**common, "ranking": ranking, "named_effect": None, "augmented": None,
+                   "after": None, "gap_after": gap,
+                   "verdict": "unexplained_disagreement"}  # fmt: skip
+    if best is None or best.fit is None:
+        return DiagnosisReport(**unexplained)
+    naming = name_check(
+        problem, fast, ranking_base, before, best, settings, before if fast is simulator else None
+    )
+    if not naming.passes:
+        return DiagnosisReport(**unexplained, naming_check=naming)
     augmented = best.fit if recalibrate is None else recalibrate(best)
     after = check(problem, simulator, augmented, settings)
+    accepted, reasons = accept_augmented(before, after)
+    extra: dict[str, Any] = {}
+    if not accepted and recalibrate is not None:
+        # the recalibration ended worse than the ranking's refit said: check the refit itself
+        refit_after = check(problem, simulator, best.fit, settings)
+        refit_ok, _ = accept_augmented(before, refit_after)
+        extra["recalibration_rejected"] = [dict(r) for r in reasons]
+        if refit_ok:
+            augmented, after, accepted, reasons = best.fit, refit_after, True, []
+            extra["augmented_source"] = "ranking refit (the recalibration was not better)"
     return DiagnosisReport(
-        problem,
-        base,
-        before,
-        ranking,
+        **common,
+        ranking=ranking,
+        named_effect=best.effect,
+        augmented=augmented,
+        after=after,
+        gap_after=gap_metrics(after, bins),
+        verdict="named",
+        naming_check=naming,
+        accepted=accepted,
+        accept_reasons=tuple(reasons),
+        extra=extra,
+    )
+
+
+def name_check(
+    problem: DiagnosisProblem,
+    fast: Simulator,
+    ranking_base: Fit,
+    before: Detection,
+    best: RankedEffect,
+    settings: WorkflowSettings,
+    base_check: Detection | None = None,
+) -> NamingCheck:
+    """The naming rule on the best candidate: base refit and augmented refit checked on
+    the ranking's simulator, compared on the bins flagged before (``base_check``: the
+    base refit's check when already done)."""
+    assert best.fit is not None
+    if base_check is None:
+        base_check = check(problem, fast, ranking_base, settings)
+    augmented_check = check(problem, fast, best.fit, settings)
+    return check_naming(
         best.effect,
-        augmented,
-        after,
-        gap_metrics(before, bins),
-        gap_metrics(after, bins),
-        name,
+        best.score,
+        get_effect(best.effect).calibrated_names,
+        best.fit.names,
+        best.fit.w,
+        best.fit.bounds,
+        before.flagged,
+        base_check,
+        augmented_check,
+        settings.rule,
     )

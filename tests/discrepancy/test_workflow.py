@@ -9,12 +9,14 @@ cases so both of each are covered.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from susp_bo.discrepancy.figures import before_after_figure
 from susp_bo.discrepancy.scenarios import synthesize_problem
-from susp_bo.discrepancy.workflow import run_workflow
+from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
 
 SLOW, FAST = 55.56, 83.33
 CASES = [
@@ -44,7 +46,13 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(
     report = run_workflow(problem, linear_simulator)
     document = report.to_dict()
     assert document["flagged"], "the hidden effect must be flagged"
+    assert document["verdict"] == "named"
     assert document["named_effect"] == effect
+    assert document["naming_check"]["passes"] and document["naming_check"]["explained_share"] > 0.9
+    # accepted only because it is better on all bins, not just on the flagged ones
+    assert document["augmented"]["accepted"] and document["answer_model"] == "augmented"
+    assert report.gap_after["value_all_bins"] < report.gap_before["value_all_bins"]
+    assert report.after.flagged_fraction < report.before.flagged_fraction
     ranking = document["ranking"]
     assert ranking[0]["effect"] == effect and ranking[0]["score"] > 0
     assert document["margin"] is None or document["margin"] > 0
@@ -74,7 +82,63 @@ def test_the_null_case_names_nothing_and_flags_nothing(
     problem = synthesize_problem(base_spec, None, nu=3, seed=5, noise_m_s2=noise, speed_m_s=speed)
     report = run_workflow(problem, linear_simulator)
     document = report.to_dict()
+    assert document["verdict"] == "consistent"
     assert document["named_effect"] is None
     assert document["flagged"] == []  # BH at q = 0.05: any false flag has probability <= 5 %
     assert document["gap_before"] == document["gap_after"]
     assert float(np.mean(report.before.z**2)) < 1.0  # paired check is conservative under B
+
+
+OUT_OF_LIBRARY = [
+    ("high_conicity", FAST),  # the best candidate (yaw-damper compliance) scores, yet must fail
+    ("primary_lateral_soft", SLOW),
+    ("sensor_rolled", FAST),
+]
+
+
+@pytest.mark.parametrize(("kind", "speed"), OUT_OF_LIBRARY, ids=[c[0] for c in OUT_OF_LIBRARY])
+def test_out_of_library_physics_is_flagged_but_not_named(
+    base_spec, linear_simulator, kind, speed
+) -> None:
+    problem = synthesize_problem(
+        base_spec, None, nu=3, seed=11, noise_m_s2=0.02, speed_m_s=speed, modification=kind
+    )
+    report = run_workflow(problem, linear_simulator)
+    document = report.to_dict()
+    assert document["flagged"], f"{kind} must be flagged"
+    assert document["verdict"] == "unexplained_disagreement"
+    assert document["named_effect"] is None and document["augmented"] is None
+    assert not document["naming_check"]["passes"]
+    band = report.before.bands[0]
+    sentence = document["sentence"]
+    assert f"{band.channel.split('_')[0]} " in sentence and f"{band.f_low_hz:.2g}–" in sentence
+    assert "no library effect explains" in document["sentence"]
+
+
+def test_a_recalibration_that_ends_worse_is_not_accepted(base_spec, linear_simulator) -> None:
+    """The recalibration returns a model with the base parameters at their lower bounds:
+    worse on all bins, so it is refused; the ranking's refit, better, is the answer."""
+    problem = synthesize_problem(
+        base_spec, ("carbody_bending", {"frequency_hz": 10.0}), nu=3, seed=11, noise_m_s2=0.01,
+        speed_m_s=FAST,
+    )  # fmt: skip
+    bad_fits = []
+
+    def recalibrate(best):
+        w = best.fit.w.copy()
+        w[: len(problem.names)] = problem.bounds[0]
+        bad_fits.append(dataclasses.replace(best.fit, w=w))
+        return bad_fits[-1]
+
+    settings = WorkflowSettings(candidates=("carbody_bending", "air_spring_reservoir"))
+    report = run_workflow(problem, linear_simulator, settings=settings, recalibrate=recalibrate)
+    document = report.to_dict()
+    assert bad_fits and document["verdict"] == "named"
+    codes = {r["code"] for r in document["recalibration_rejected"]}
+    assert "log_predictive_density_not_better" in codes
+    assert document["augmented_source"].startswith("ranking refit")
+    assert report.augmented is not bad_fits[-1] and report.accepted
+    # a model not better keeps the base as the answer, and the sentence says so
+    refused = dataclasses.replace(report, accepted=False, accept_reasons=({"code": "x",
+                                  "message": "worse"},))  # fmt: skip
+    assert refused.answer_model == "base" and "NOT better" in refused.sentence()

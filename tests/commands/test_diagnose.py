@@ -1,0 +1,60 @@
+"""`susp-bo diagnose` input checks and the not-trusted answer (no simulation needed)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from susp_bo.cli import main
+
+
+def _result_dir(tmp_path: Path, payload: object) -> Path:
+    folder = tmp_path / "result"
+    folder.mkdir()
+    text = payload if isinstance(payload, str) else json.dumps(payload)
+    (folder / "result.json").write_text(text)
+    (folder / "study.toml").write_text('rig = "hst_trailer"\n')
+    return folder
+
+
+def test_a_folder_without_a_calibration_is_refused(tmp_path: Path, capsys) -> None:
+    assert main(["diagnose", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    error = capsys.readouterr().err
+    assert "RESULT_DIR" in error and "result.json" in error and "Traceback" not in error
+
+
+def test_a_budget_below_two_is_refused(tmp_path: Path, capsys) -> None:
+    folder = _result_dir(tmp_path, {})
+    assert main(["diagnose", str(folder), "--out", str(tmp_path / "o"), "--budget", "1"]) == 2
+    assert "--budget: got 1" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_result_that_is_not_json_is_refused(tmp_path: Path, capsys) -> None:
+    folder = _result_dir(tmp_path, "{not json")
+    assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 2
+    assert "result.json is not readable JSON" in capsys.readouterr().err
+
+
+def test_not_trusted_is_answered_at_once_with_exit_code_0(tmp_path: Path, capsys) -> None:
+    reason = {"code": "not_converged", "message": "EGO stopped on the budget"}
+    folder = _result_dir(tmp_path, {"n_evaluations": 30, "reliability": {
+        "verdict": "not_trusted", "reasons": [reason], "sentence": "no"}})  # fmt: skip
+    assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 0
+    error = capsys.readouterr().err
+    assert "calibration_not_trusted" in error and "EGO stopped on the budget" in error
+    assert "--resume --budget 60" in error
+    document = json.loads((tmp_path / "o" / "discrepancy.json").read_text())
+    assert document["verdict"] == "calibration_not_trusted"
+    assert document["flagged"] == [] and document["named_effect"] is None
+    assert document["calibration_reliability"]["reasons"] == [reason]
+
+
+@pytest.mark.parametrize("verdict", ["not_trusted", "Trusted", None])
+def test_only_the_exact_trusted_verdict_counts(tmp_path: Path, verdict, capsys) -> None:
+    folder = _result_dir(tmp_path, {"reliability": {"verdict": verdict}})
+    assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 0
+    document = json.loads((tmp_path / "o" / "discrepancy.json").read_text())
+    assert document["verdict"] == "calibration_not_trusted"
