@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
+from susp_bo.calibration.reliability import budget_requirement
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.monitoring.alarms import CampaignRecord, apply_alarms
@@ -254,6 +255,8 @@ def run_scenario(
         seed=2026,
         vehicles=vehicles,
     )
+    design = max(8, budget // 3) if budget >= 8 else budget
+    check = 4 if budget >= 12 else 0
     (data / "monitor.toml").write_text(
         tomli_w.dumps(
             {
@@ -261,9 +264,12 @@ def run_scenario(
                 "parameters": list(CALIBRATED),
                 "budget": {
                     "max_evaluations": budget,
-                    "initial_design": max(8, budget // 3) if budget >= 8 else budget,
+                    "initial_design": design,
                     "batch_size": 4,
-                    "check_points": 4 if budget >= 12 else 0,
+                    "check_points": check,
+                    # a smoke-sized budget runs, and its calibrations say they are not trusted
+                    "allow_small": budget
+                    < budget_requirement(len(CALIBRATED), design, 4, check).minimum,
                 },
                 "seeds": {"calibration": 0, "mcmc": 1},
                 "mcmc": dict(mcmc or {"chains": 128, "draws": 1000, "warmup": 300}),

@@ -48,7 +48,8 @@ def add_campaign(folder: Path, rig: Path, vehicle: str, date: str, seed: int) ->
 
 
 def write_monitor_config(folder: Path, rig: Path) -> Path:
-    """``monitor.toml``: q = 2, 8 evaluations per campaign in batches of 2, short MCMC."""
+    """``monitor.toml``: q = 2, 8 evaluations per campaign in batches of 2 (below the minimum,
+    allowed: the verdicts are not trusted), short MCMC."""
     path = folder / "monitor.toml"
     path.write_text(
         tomli_w.dumps(
@@ -60,6 +61,7 @@ def write_monitor_config(folder: Path, rig: Path) -> Path:
                     "initial_design": 6,
                     "batch_size": 2,
                     "check_points": 2,
+                    "allow_small": True,  # below the minimum on purpose: fast, not trusted
                 },
                 "mcmc": {"chains": 8, "draws": 300, "warmup": 200},
             }
