@@ -257,6 +257,7 @@ def run_scenario(
     )
     design = max(8, budget // 3) if budget >= 8 else budget
     check = 4 if budget >= 12 else 0
+    minimum = budget_requirement(len(CALIBRATED), design, 4, check).minimum
     (data / "monitor.toml").write_text(
         tomli_w.dumps(
             {
