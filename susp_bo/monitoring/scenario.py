@@ -269,8 +269,7 @@ def run_scenario(
                     "batch_size": 4,
                     "check_points": check,
                     # a smoke-sized budget runs, and its calibrations say they are not trusted
-                    "allow_small": budget
-                    < budget_requirement(len(CALIBRATED), design, 4, check).minimum,
+                    "allow_small": budget < minimum,
                 },
                 "seeds": {"calibration": 0, "mcmc": 1},
                 "mcmc": dict(mcmc or {"chains": 128, "draws": 1000, "warmup": 300}),
