@@ -28,7 +28,7 @@ def test_a_folder_without_a_calibration_is_refused(tmp_path: Path, capsys) -> No
 def test_a_budget_below_two_is_refused(tmp_path: Path, capsys) -> None:
     folder = _result_dir(tmp_path, {})
     assert main(["diagnose", str(folder), "--out", str(tmp_path / "o"), "--budget", "1"]) == 2
-    assert "--budget: got 1" in capsys.readouterr().err
+    assert "argument --budget: '1' is not allowed" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
 
 

@@ -53,6 +53,7 @@ def test_calibrate_evaluates_a_given_design_first() -> None:
         mcmc_samples=50,
         candidate_count=64,
         check_points=0,
+        allow_small_budget=True,  # a 10-evaluation run below the minimum, on purpose: fast
     )
     rng = np.random.default_rng(1)
     design = target.bounds[0] + rng.random((6, 2)) * (target.bounds[1] - target.bounds[0])
