@@ -7,12 +7,12 @@ against the rig's channels and band, the output folder and its store), then:
 1. the measured spectra y_exp,i (ν x C x F) and the track stretches x_j are
    taken from the runs (μ = ν: each measured run's geometry and speed is one
    track realization);
-2. the output error B is set (``[output_error] model``): ``paired`` (default:
-   every run has its own measured track, so run i is compared with h(x_i, w)
-   only; B = the Welch statistics of the sensor noise + a per-channel model
-   error, profiled or fixed, :mod:`susp_bo.calibration.paired_error`) or
-   ``unpaired`` (eq. 4's mixture over tracks; σ_B per channel from the scatter
-   of the measured spectra between runs, or fixed in the config);
+2. the output error B is set (``[output_error] model``): ``unpaired`` (default:
+   eq. 4's mixture over tracks; σ_B per channel from the scatter of the measured
+   spectra between runs, or fixed in the config) or ``paired`` (every run has its
+   own measured track, so run i is compared with h(x_i, w) only; B = the Welch
+   statistics of the sensor noise + a per-channel model error, profiled or fixed,
+   :mod:`susp_bo.calibration.paired_error`; opt-in, see the README);
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
    simulator evaluation going through the evaluation store and the executor;
 4. ``result.json``, the config used, the figures and the log are written, with
@@ -60,13 +60,20 @@ from susp_bo.calibration.loop import (
     calibrate,
 )
 from susp_bo.calibration.paired_error import PairedOutputError
-from susp_bo.calibration.reliability import budget_message, budget_requirement
+from susp_bo.calibration.study_inputs import (
+    StudyError,
+    check_budget,
+    check_runs_rig,
+    design_removal,
+    import_hint,
+    reference_parameters,
+    sensor_noise,
+    store_mismatch,
+)
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.output_folder import check_output_folder
-from susp_bo.rig.assembly import build_assembly
-from susp_bo.rig.curving import reference_specific_force
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.store import EvaluationStore, StoreMismatchError, study_fingerprint
@@ -78,10 +85,6 @@ CONFIG_NAME = "study.toml"
 LOG_NAME = "study.log"
 SAMPLES_NAME = "posterior_samples.npy"
 MAX_SAVED_SAMPLES = 20_000
-
-
-class StudyError(ValueError):
-    """A study that cannot start: bad inputs or an output folder that is in the way."""
 
 
 @dataclass(frozen=True)
@@ -168,145 +171,6 @@ def _output_error(
     return OutputError(tuple(float(sigma[c]) for c in channels), ell)
 
 
-def _reference(runs: tuple[MeasuredRun, ...], names: tuple[str, ...]) -> np.ndarray | None:
-    truth = runs[0].metadata.get("truth") if runs[0].metadata else None
-    if not isinstance(truth, dict) or not all(n in truth for n in names):
-        return None
-    return np.array([float(truth[n]) for n in names])
-
-
-def _sensor_noise(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> float:
-    """The configured sensor noise, else the one the runs' metadata record, else 0."""
-    if config.output_error.sensor_noise_m_s2 is not None:
-        return config.output_error.sensor_noise_m_s2
-    rates = {run.sample_rate_hz for run in runs}
-    if len(rates) > 1:
-        raise StudyError(
-            f"data: the runs are sampled at different rates {sorted(rates)} Hz; resample them "
-            "to one rate (the sensor-noise floor and the spectra assume one)"
-        )
-    recorded = {float((run.metadata or {}).get("noise_m_s2", 0.0)) for run in runs}
-    if len(recorded) > 1:
-        raise StudyError(
-            f"data: the runs record different sensor noise levels {sorted(recorded)} m/s^2; "
-            "set output_error.sensor_noise_m_s2"
-        )
-    return recorded.pop()
-
-
-def import_hint(folder: Path) -> str:
-    """A hint when ``folder`` holds CSV or MATLAB files instead of HDF5 runs, else ``""``."""
-    if not folder.is_dir():
-        return ""
-    found = {
-        kind: sum(1 for p in folder.iterdir() if p.suffix.lower() == f".{kind}")
-        for kind in ("csv", "mat")
-    }
-    kinds = [kind for kind, count in found.items() if count]
-    if not kinds:
-        return ""
-    listed = " and ".join(f"{found[kind]} .{kind} files" for kind in kinds)
-    return (
-        f"; it holds {listed}: convert them to the HDF5 measured-run format first, e.g. "
-        f"susp-bo import {kinds[0]} {folder} --out {folder}_h5 --rig RIG"
-    )
-
-
-def check_runs_rig(runs: tuple[MeasuredRun, ...], rig: str, folder: Path) -> None:
-    """Refuse runs whose metadata names another rig than ``rig``, or several rigs.
-
-    Runs without a ``rig`` entry in their metadata (real measurements) pass.
-
-    Raises:
-        StudyError: naming the folder, the rigs found and the rig calibrated.
-    """
-    by_rig: dict[str, list[int]] = {}
-    for index, run in enumerate(runs):
-        name = (run.metadata or {}).get("rig")
-        if name is not None:
-            by_rig.setdefault(str(name), []).append(index)
-    if len(by_rig) > 1:
-        files = sorted(p.name for p in folder.iterdir() if p.suffix in {".h5", ".hdf5"})
-        if len(files) != len(runs):  # not the folder load_runs read: number the runs
-            files = [f"run {index}" for index in range(len(runs))]
-        listed = "; ".join(
-            f"{name!r}: {', '.join(files[i] for i in indices)}"
-            for name, indices in sorted(by_rig.items())
-        )
-        raise StudyError(
-            f"data: {folder} mixes runs of {len(by_rig)} rigs (run metadata 'rig': {listed}); "
-            "keep one rig's runs per folder"
-        )
-    if by_rig and rig not in by_rig:
-        other = next(iter(by_rig))
-        raise StudyError(
-            f"data: the runs in {folder} were recorded on rig {other!r} (run metadata 'rig') "
-            f"but the study calibrates rig {rig!r}; calibrate rig {other!r}, or use runs of "
-            f"{rig!r}"
-        )
-
-
-def _store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
-    def short(text: str) -> str:
-        return text if len(text) <= 40 else text[:37] + "..."
-
-    what = {
-        "rig": "the rig (or its parameter values)",
-        "data": "the measured data",
-        "tracks": "the measured runs",
-        "parameter_names": "the calibrated parameters",
-        "output_error": "the output error",
-        "sensor_noise_m_s2": "the sensor noise",
-    }.get(error.key, repr(error.key))
-    return StudyError(
-        f"--resume: {out} holds the evaluations of another study: {what} differs "
-        f"(stored {short(error.stored)!r}, now {short(error.current)!r}); resume with the "
-        "same rig, data and parameters, or give a new output folder"
-    )
-
-
-def design_removal(spec: RigSpec, run: MeasuredRun) -> np.ndarray | None:
-    """The design's quasi-static specific force at the rig's sensors over ``run`` (C x n_t).
-
-    None for a run without a design. Removed from the measured accelerations
-    before their spectra, exactly as the rig removes it from simulated ones
-    (:func:`susp_bo.rig.curving.reference_specific_force`); depends on the design,
-    the speed and the rig's geometry only.
-    """
-    if run.design is None:
-        return None
-    sensors = {sensor.name: sensor for sensor in spec.sensors}
-    return reference_specific_force(
-        build_assembly(spec),
-        tuple(sensors[channel] for channel in run.channels),
-        run.design,
-        run.speed,
-        run.time_s,
-    )
-
-
-def check_budget(config: StudyConfig, q: int) -> None:
-    """Refuses a budget below the minimum for q parameters, unless ``budget.allow_small``.
-
-    Raises:
-        StudyError: naming ``--budget`` (``budget.max_evaluations``), the value and the
-            minimum (:func:`susp_bo.calibration.reliability.budget_requirement`).
-    """
-    budget = config.budget
-    requirement = budget_requirement(
-        q, budget.initial_design, budget.batch_size, budget.check_points
-    )
-    if budget.max_evaluations < requirement.minimum and not budget.allow_small:
-        raise StudyError(
-            budget_message(
-                budget.max_evaluations,
-                requirement,
-                "budget.max_evaluations (--budget)",
-                "set [budget] allow_small = true (--allow-small-budget)",
-            )
-        )
-
-
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     """Check every input of a study and load its data (no simulation).
 
@@ -354,7 +218,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     all_names = spec.calibration_names
     columns = [all_names.index(name) for name in names]
     bounds = spec.calibration_bounds[:, columns]
-    noise = _sensor_noise(config, runs)
+    noise = sensor_noise(config, runs)
     return PreparedStudy(
         config=config,
         spec=spec,
@@ -365,7 +229,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         tracks=tracks,
         error=_output_error(config, measured, spec.channels, runs, spec, noise),
         noise_m_s2=noise,
-        reference=_reference(runs, tuple(names)),
+        reference=reference_parameters(runs, tuple(names)),
     )
 
 
@@ -536,7 +400,7 @@ def run_study(
     try:  # before anything is written: a refused resume leaves the folder as it was
         store = EvaluationStore(out / STORE_NAME, store_fingerprint(study))
     except StoreMismatchError as error:
-        raise _store_mismatch(out, error) from None
+        raise store_mismatch(out, error) from None
     (out / CONFIG_NAME).write_text(config.to_toml())
     log = _logger(out)
     log.info(
