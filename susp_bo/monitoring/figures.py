@@ -11,7 +11,6 @@ cross when the data are synthetic. Values in physical units with SI prefixes.
 from __future__ import annotations
 
 import datetime as dt
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -25,18 +24,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-_PREFIXES = {-3: "m", 0: "", 3: "k", 6: "M", 9: "G"}
-
-
-def unit_scale(values: np.ndarray, unit: str) -> tuple[float, str]:
-    """(factor, label) so that ``values / factor`` reads in ``<prefix><unit>`` (engineering)."""
-    finite = np.abs(np.asarray(values, dtype=np.float64))
-    finite = finite[np.isfinite(finite) & (finite > 0)]
-    if finite.size == 0 or not unit:
-        return 1.0, unit
-    exponent = 3 * math.floor(math.log10(float(np.max(finite))) / 3)
-    exponent = min(max(exponent, -3), 9)
-    return 10.0**exponent, f"{_PREFIXES[exponent]}{unit}"
+from susp_bo.units import unit_scale
 
 
 def trend_figure(payload: Mapping[str, Any], name: str, path: Path) -> Path:
@@ -45,7 +33,7 @@ def trend_figure(payload: Mapping[str, Any], name: str, path: Path) -> Path:
     unit = payload["units"][k]
     lower, upper = payload["bounds"][k]
     acceptable = payload["acceptable"][k]
-    factor, label = unit_scale(np.array([lower, upper]), unit)
+    factor, label = unit_scale(max(abs(lower), abs(upper)), unit)
     fig, ax = plt.subplots(figsize=(8.0, 4.2), constrained_layout=True)
     if acceptable is not None:
         ax.axhspan(
