@@ -17,6 +17,7 @@ from susp_bo.study_config import (
     load_study_config,
     parse_study_config,
 )
+from susp_bo.units import format_values
 
 
 def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
@@ -153,17 +154,24 @@ def run_calibrate(args: argparse.Namespace) -> int:
 def format_summary(payload: dict) -> str:
     """A plain-text table of the posterior (what a maintenance engineer reads first).
 
+    Values in SI-prefixed units (``27.9 [27.2, 28.5] kN·s/m``); with synthetic data the
+    reference and whether it lies inside the interval.
+
     Its last line is the reliability sentence (``payload["reliability"]["sentence"]``), or
     says that the result has no verdict (a result.json from an older version).
     """
-    lines = [f"{'parameter':34s} {'marginal MAP':>13s} {'95 % interval':>27s} {'reference':>11s}"]
+    lines = [f"{'parameter':34s} {'marginal MAP [95 % interval]':36s} reference"]
     reference = payload.get("reference")
+    units = payload.get("units") or [""] * len(payload["parameters"])
     for k, name in enumerate(payload["parameters"]):
         lo, hi = payload["interval95"][k]
-        ref = "" if reference is None else f"{reference[k]:11.4g}"
-        lines.append(
-            f"{name:34s} {payload['marginal_map'][k]:13.4g} [{lo:11.4g}, {hi:11.4g}] {ref}"
-        )
+        estimate = [payload["marginal_map"][k], lo, hi]
+        (value, low, high), unit = format_values(estimate, units[k])
+        ref = ""
+        if reference is not None:
+            (truth,), _ = format_values([reference[k]], units[k], like=estimate)
+            ref = f"{truth} {unit} ({'inside' if lo <= reference[k] <= hi else 'OUTSIDE'})"
+        lines.append(f"{name:34s} {f'{value} [{low}, {high}] {unit}':36s} {ref}".rstrip())
     lines.append(
         f"simulator runs: {payload['n_simulations']}, likelihood evaluations: "
         f"{payload['n_evaluations']}, wall time {payload['wall_time_s']:.0f} s"

@@ -92,3 +92,23 @@ def test_a_budget_below_the_minimum_is_refused_or_allowed_on_request(
     args = build_parser().parse_args([*command, "--allow-small-budget"])
     config = config_from_arguments(args)
     assert config.budget.allow_small and config.budget.initial_design == 35
+
+
+def test_summary_reads_in_prefixed_units_and_says_which_reference_is_outside() -> None:
+    from susp_bo.commands.calibrate import format_summary
+
+    payload = {
+        "parameters": ["secondary_vertical_damping", "yaw_damper_damping"],
+        "units": ["N·s/m", "N·s/m"],
+        "marginal_map": [27.855e3, 4.388e6],
+        "interval95": [[27.201e3, 28.509e3], [4.058e6, 4.718e6]],
+        "reference": [28.0e3, 3.7e6],
+        "n_simulations": 600,
+        "n_evaluations": 200,
+        "wall_time_s": 1414.0,
+        "reliability": {"verdict": "not_trusted", "sentence": "Not trusted: a reason."},
+    }
+    lines = format_summary(payload).splitlines()
+    assert "27.9 [27.2, 28.5] kN·s/m" in lines[1] and "28.0 kN·s/m (inside)" in lines[1]
+    assert "4.39 [4.06, 4.72] MN·s/m" in lines[2] and "3.70 MN·s/m (OUTSIDE)" in lines[2]
+    assert lines[-1] == "Not trusted: a reason."
