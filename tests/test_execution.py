@@ -49,7 +49,7 @@ def test_in_process_pool_and_dask_cluster_give_identical_results(
         pool = _values(run_tasks(executor, tasks_module.log_spectrum, tasks, progress=False))
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+            n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0"
         ) as cluster,
         make_executor(scheduler=cluster.scheduler_address) as executor,
     ):

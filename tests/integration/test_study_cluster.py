@@ -24,7 +24,7 @@ def test_local_cluster_study_equals_process_pool_study(
     pool_payload, _ = run_study(pool_config, progress=False)
 
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     ) as cluster:
         cluster_config = dataclasses.replace(
             pool_config,
