@@ -114,6 +114,7 @@ class Options:
     smoke: bool
     reference_only: bool = False
     zoom: bool = False
+    trust_region: bool = False
 
 
 def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
@@ -121,7 +122,9 @@ def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
     config = demo_config(Path("/nonexistent"), smoke=False, seed=0)
     settings = calibration_settings(config)
     seed = int(np.random.SeedSequence([options.seed, experiment, 7]).generate_state(1)[0] >> 1)
-    settings = dataclasses.replace(settings, seed=seed, mcmc_seed=seed + 1)
+    settings = dataclasses.replace(
+        settings, seed=seed, mcmc_seed=seed + 1, trust_region=options.trust_region
+    )
     if options.budget is not None:
         settings = dataclasses.replace(
             settings,
@@ -138,6 +141,7 @@ def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
             mcmc_chains=16,
             mcmc_warmup=100,
             mcmc_samples=200,
+            allow_small_budget=True,
         )
     return settings
 
@@ -630,6 +634,12 @@ def main(argv: list[str] | None = None) -> int:
         "the first posterior (evidence for the loop, not the tool's method)",
     )
     parser.add_argument(
+        "--trust-region",
+        action="store_true",
+        help="calibrate with the search box that follows the posterior "
+        "(CalibrationSettings.trust_region)",
+    )
+    parser.add_argument(
         "--aggregate-only", action="store_true", help="figures of the finished experiments only"
     )
     args = parser.parse_args(argv)
@@ -657,13 +667,19 @@ def main(argv: list[str] | None = None) -> int:
         args.smoke,
         args.reference_only,
         args.zoom,
+        args.trust_region,
     )
     out: Path = args.out
     folder = out / "experiments"
     folder.mkdir(parents=True, exist_ok=True)
     config_path = out / "config.json"
     if config_path.exists():
-        stored = {"reference_only": False, "zoom": False, **json.loads(config_path.read_text())}
+        stored = {
+            "reference_only": False,
+            "zoom": False,
+            "trust_region": False,
+            **json.loads(config_path.read_text()),
+        }
         if stored != dataclasses.asdict(options):
             parser.error(
                 f"--out: {out} holds an SBC run with other options {stored}; "

@@ -67,6 +67,7 @@ from susp_bo.calibration.surrogate_check import (
     edge_points,
     observation_noise_sd,
 )
+from susp_bo.calibration.trust_region import box_edge, next_box, to_global_unit, training_mask
 from susp_bo.progress import progress_bar
 
 logger = logging.getLogger(__name__)
@@ -118,6 +119,9 @@ class CalibrationResult:
         check: the held-out check of the surrogate posterior (None when
             ``check_points`` is 0 or no budget was left for it).
         reliability: the verdict on this result (:mod:`.reliability`).
+        search_box: (2 x q) the final search box (physical units) the surrogate, the
+            check points and the MCMC worked in: C_w itself unless
+            ``settings.trust_region`` (:mod:`.trust_region`).
     """
 
     names: tuple[str, ...]
@@ -133,11 +137,17 @@ class CalibrationResult:
     mcmc: dict[str, float]
     check: SurrogateCheck | None = None
     reliability: Reliability | None = None
+    search_box: np.ndarray | None = None
 
     @property
     def samples(self) -> np.ndarray:
         """Posterior draws pooled over chains, (draws x q), physical units."""
         return self.draws.reshape(-1, self.draws.shape[-1])
+
+    @property
+    def box(self) -> np.ndarray:
+        """(2 x q) the box the surrogate works in (its unit cube): the search box or C_w."""
+        return self.bounds if self.search_box is None else self.search_box
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (physical units)."""
@@ -148,7 +158,8 @@ class CalibrationResult:
             n_failed=int(np.sum(~np.isfinite(self.y))),
             stop_reason=self.stop_reason,
             mcmc=dict(self.mcmc),
-            surrogate_check=None if self.check is None else self.check.to_dict(self.bounds),
+            surrogate_check=None if self.check is None else self.check.to_dict(self.box),
+            search_box=None if self.search_box is None else self.search_box.tolist(),
             reliability=None if self.reliability is None else self.reliability.to_dict(),
         )
         return out
@@ -239,12 +250,18 @@ def _refinement_candidates(
 
 
 def _fit(
-    x: np.ndarray, y: np.ndarray, bounds: np.ndarray, settings: CalibrationSettings, iteration: int
+    x: np.ndarray, y: np.ndarray, box: np.ndarray, settings: CalibrationSettings, iteration: int
 ) -> Surrogate:
-    """The surrogate of all evaluations so far (failures imputed), seeded by ``iteration``."""
-    return fit_surrogate(
-        to_unit(x, bounds), _impute(y), settings.surrogate, _seed(settings.seed, iteration, 1)
-    )
+    """The surrogate in ``box``'s unit cube, seeded by ``iteration``.
+
+    Fitted on every evaluation so far (failures imputed) or, with a trust region, on those
+    in and near the box (:func:`.trust_region.training_mask`).
+    """
+    y = _impute(y)
+    if settings.trust_region:
+        keep = training_mask(x, box, min_points=2 * x.shape[1] + 2)
+        x, y = x[keep], y[keep]
+    return fit_surrogate(to_unit(x, box), y, settings.surrogate, _seed(settings.seed, iteration, 1))
 
 
 @dataclass(frozen=True)
@@ -253,21 +270,27 @@ class _Step:
     proposal: torch.Tensor | None
     criterion: float
     stop_reason: str
+    box: np.ndarray
 
 
 def _propose(
     x: np.ndarray,
     y: np.ndarray,
     bounds: np.ndarray,
+    box: np.ndarray,
     phase: Phase,
     size: int,
     iteration: int,
     ego_exhausted: bool,
     settings: CalibrationSettings,
 ) -> _Step:
-    """Refits the surrogate and proposes the next batch (None when a stopping rule fires)."""
+    """Refits the surrogate and proposes the next batch (None when a stopping rule fires).
+
+    With a trust region, every refinement step may move the search box first
+    (:func:`.trust_region.next_box`); the returned step carries the box its proposal is in.
+    """
     seed = settings.seed
-    surrogate = _fit(x, y, bounds, settings, iteration)
+    surrogate = _fit(x, y, box, settings, iteration)
     if phase == "ego":
         u, criterion = propose_ei_batch(
             surrogate,
@@ -278,14 +301,27 @@ def _propose(
         )
         converged = criterion < settings.ei_tolerance
         if not (converged or ego_exhausted):
-            return _Step("ego", u, criterion, "")
+            return _Step("ego", u, criterion, "", box)
         if not settings.refine:
-            return _Step("ego", None, criterion, "ego_converged" if converged else "budget")
+            return _Step("ego", None, criterion, "ego_converged" if converged else "budget", box)
     candidates, n_post = _refinement_candidates(surrogate, settings, _seed(seed, iteration, 3))
+    if settings.trust_region:
+        finite = np.isfinite(y)
+        best = x[finite][int(np.argmax(y[finite]))]
+        moved = next_box(
+            candidates[:n_post].numpy(), box, bounds, best, settings.trust_region_half_width_sd
+        )
+        if moved is not None:
+            logger.info("search box: %s", np.array2string(moved, precision=4))
+            box = moved
+            surrogate = _fit(x, y, box, settings, iteration)
+            candidates, n_post = _refinement_candidates(
+                surrogate, settings, _seed(seed, iteration, 3)
+            )
     u, criterion = select_uncertainty_batch(surrogate, candidates, size, n_post)
     if criterion < settings.refine_tolerance:
-        return _Step("refine", None, criterion, "converged")
-    return _Step("refine", u, criterion, "")
+        return _Step("refine", None, criterion, "converged", box)
+    return _Step("refine", u, criterion, "", box)
 
 
 class BudgetTooSmallError(ValueError):
@@ -391,6 +427,7 @@ def calibrate(
         main_budget = budget - n_check
     y = _evaluate(evaluate, x)
     bar.update(n0)
+    box = b.copy()
     phase: Phase = "ego"
     ego_cap = n0 + int(settings.max_ego_fraction * (main_budget - n0))
     history: list[IterationReport] = []
@@ -400,12 +437,12 @@ def calibrate(
         iteration += 1
         size = min(settings.batch_size, main_budget - x.shape[0])
         with torch_threads(settings.num_threads):
-            step = _propose(x, y, b, phase, size, iteration, x.shape[0] >= ego_cap, settings)
-        phase = step.phase
+            step = _propose(x, y, b, box, phase, size, iteration, x.shape[0] >= ego_cap, settings)
+        phase, box = step.phase, step.box
         if step.proposal is None:
             stop_reason = step.stop_reason
             break
-        w_new = from_unit(step.proposal.numpy(), b)
+        w_new = from_unit(step.proposal.numpy(), box)
         y_new = _evaluate(evaluate, w_new)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(size)
@@ -413,8 +450,8 @@ def calibrate(
     check = None
     if n_check > 0:
         with torch_threads(settings.num_threads):
-            u, predicted, sd, noise = _propose_check(x, y, b, n_check, settings)
-        w_new = from_unit(u.numpy(), b)
+            u, predicted, sd, noise = _propose_check(x, y, box, n_check, settings)
+        w_new = from_unit(u.numpy(), box)
         y_new = _evaluate(evaluate, w_new)
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
@@ -423,7 +460,7 @@ def calibrate(
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
     with torch_threads(settings.num_threads):
-        surrogate = _fit(x, y, b, settings, _FINAL)
+        surrogate = _fit(x, y, box, settings, _FINAL)
         draws_u, diag = sample_surrogate_posterior(
             surrogate,
             n_chains=settings.mcmc_chains,
@@ -439,8 +476,8 @@ def calibrate(
             progress=progress,
         )
         log_l = surrogate_log_likelihood(surrogate, settings.estimator)
-        summary = summarize(draws_u.numpy(), b, list(names), log_l)
-        u_map = torch.as_tensor(to_unit(summary.joint_map[None, :], b), dtype=torch.float64)
+        summary = summarize(draws_u.numpy(), box, list(names), log_l)
+        u_map = torch.as_tensor(to_unit(summary.joint_map[None, :], box), dtype=torch.float64)
         with torch.no_grad():
             predicted_max = float(log_l(u_map)[0])
             predicted_max_sd = float(surrogate.log_likelihood_uncertainty(u_map)[1][0])
@@ -456,14 +493,15 @@ def calibrate(
         stop_reason=stop_reason,
         last_phase=searched[-1].phase if searched else None,
         last_criterion=searched[-1].criterion if searched else math.nan,
-        draws_unit=draws_u.numpy(),
+        draws_unit=to_global_unit(draws_u.numpy(), box, b),
         r_hat=summary.r_hat,
         ess=summary.ess,
         check=check,
         expected_at_truth=expected_at_truth,
+        box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names),
     )
     logger.info(reliability.sentence)
-    draws = from_unit(draws_u.numpy().reshape(-1, q), b).reshape(draws_u.shape)
+    draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)
     return CalibrationResult(
         names=tuple(names),
         bounds=b,
@@ -478,4 +516,5 @@ def calibrate(
         mcmc=diag,
         check=check,
         reliability=reliability,
+        search_box=None if not settings.trust_region else box,
     )

@@ -35,6 +35,8 @@ Rules (each a pure function of numbers, testable alone):
 - ``surrogate_unchecked``: no held-out check ran (``check_points = 0`` or no
   budget left for it). Nothing then tests the surrogate posterior against the
   simulator, so the result is not trusted on the surrogate's word alone.
+- ``search_box_edge`` (:func:`.trust_region.box_edge`): with a trust region, the
+  final posterior presses against an inner face of the search box, which cut it.
 - ``poor_mixing`` (:func:`poor_mixing`): split R-hat above ``r_hat_max`` (1.05) or
   bulk ESS below ``ess_min`` (400) on any parameter.
 
@@ -64,6 +66,7 @@ ORDER = (
     "at_bound",
     "surrogate_misfit",
     "surrogate_unchecked",
+    "search_box_edge",
     "poor_mixing",
 )
 """Reason codes, most fundamental first (the sentence leads with the first that fired)."""
@@ -416,6 +419,7 @@ _ADVICE = {
     "or rerun with --resume --budget {more}",
     "surrogate_misfit": "rerun with --resume --budget {more}",
     "surrogate_unchecked": "rerun with check points ([budget] check_points)",
+    "search_box_edge": "rerun with --resume --budget {more}",
     "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
 }
 
@@ -458,11 +462,13 @@ def assess(
     ess: np.ndarray,
     check: SurrogateCheck | None,
     expected_at_truth: tuple[float, float] | None = None,
+    box_edge: Reason | None = None,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
     Args:
-        draws_unit: (... x q) posterior draws in the unit cube (chains pooled here).
+        draws_unit: (... x q) posterior draws in the unit cube of C_w (chains pooled here).
+        box_edge: the ``search_box_edge`` reason of :func:`.trust_region.box_edge`, if any.
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
@@ -480,6 +486,7 @@ def assess(
         at_bound(u, names, bounds),
         surrogate_misfit(check),
         poor_mixing(r_hat, ess, names),
+        box_edge,
     ]
     reasons = sorted((r for r in found if r is not None), key=lambda r: ORDER.index(r["code"]))
     evidence: dict[str, Any] = {

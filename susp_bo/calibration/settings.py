@@ -53,6 +53,12 @@ class CalibrationSettings:
             :func:`susp_bo.calibration.reliability.budget_requirement`). False (default):
             :func:`calibrate` refuses such a budget before any evaluation; True: it runs
             and the verdict is ``not_trusted`` with ``budget_too_small``.
+        trust_region: refine in a search box that follows the posterior
+            (:mod:`susp_bo.calibration.trust_region`): the surrogate, acquisition, check and
+            MCMC work in the box, which shrinks onto the posterior and grows where the
+            posterior presses against it. Needed when the posterior is orders of magnitude
+            narrower than C_w (paired data).
+        trust_region_half_width_sd: half-width of a shrunk box coordinate, in posterior sd (> 0).
         num_threads: torch intra-op threads for the surrogate, acquisition and MCMC work
             (restored afterwards, never around ``evaluate``); None leaves torch's setting.
             The default 1 is fastest for these small matrices, by far on a shared machine.
@@ -80,6 +86,8 @@ class CalibrationSettings:
     acquisition_restarts: int = 6
     acquisition_raw_samples: int = 256
     allow_small_budget: bool = False
+    trust_region: bool = False
+    trust_region_half_width_sd: float = 8.0
     num_threads: int | None = 1
 
     def __post_init__(self) -> None:
@@ -110,6 +118,10 @@ class CalibrationSettings:
             raise ValueError(f"mcmc_warmup: {self.mcmc_warmup} must be >= 0")
         if not self.ei_tolerance > 0.0:
             raise ValueError(f"ei_tolerance: {self.ei_tolerance} must be > 0")
+        if not self.trust_region_half_width_sd > 0.0:
+            raise ValueError(
+                f"trust_region_half_width_sd: {self.trust_region_half_width_sd} must be > 0"
+            )
         if not self.refine_tolerance > 0.0:
             raise ValueError(f"refine_tolerance: {self.refine_tolerance} must be > 0 nats")
         if not 0.0 <= self.max_ego_fraction <= 1.0:

@@ -75,7 +75,7 @@ from gpytorch.priors import GammaPrior
 logger = logging.getLogger(__name__)
 
 Transform = Literal["auto", "log_deficit", "none"]
-MeanKind = Literal["auto", "quadratic", "constant"]
+MeanKind = Literal["auto", "quadratic", "constant", "full_quadratic"]
 _SQRT5 = math.sqrt(5.0)
 
 
@@ -91,8 +91,10 @@ class SurrogateSettings:
         noise_variance: fixed observation noise in standardised units (>= 1e-6, GPyTorch's
             floor).
         mean: GP prior mean: "constant", "quadratic" (negative quadratic trend,
-            :class:`NegativeQuadraticMean`) or "auto" (default: both fitted at every refit,
-            the better leave-one-out score kept; see the module docstring).
+            :class:`NegativeQuadraticMean`), "full_quadratic" (the same with a full
+            Hessian, :class:`FullQuadraticMean`: a correlated bowl) or "auto" (default:
+            constant and quadratic fitted at every refit, the better leave-one-out score
+            kept; see the module docstring).
     """
 
     transform: Transform = "none"
@@ -105,8 +107,10 @@ class SurrogateSettings:
             raise ValueError(f"transform: {self.transform!r}, expected auto/log_deficit/none")
         if self.deficit_scale is not None and not self.deficit_scale > 0.0:
             raise ValueError(f"deficit_scale: {self.deficit_scale} must be None or > 0 nats")
-        if self.mean not in ("auto", "quadratic", "constant"):
-            raise ValueError(f"mean: {self.mean!r}, expected 'auto', 'quadratic' or 'constant'")
+        if self.mean not in ("auto", "quadratic", "constant", "full_quadratic"):
+            raise ValueError(
+                f"mean: {self.mean!r}, expected 'auto', 'quadratic', 'full_quadratic' or 'constant'"
+            )
         if not self.noise_variance >= 1e-6:
             raise ValueError(f"noise_variance: {self.noise_variance} must be >= 1e-6")
 
@@ -139,6 +143,43 @@ class NegativeQuadraticMean(Mean):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """(... x n x q) -> (... x n)."""
         return self.constant - 0.5 * (((x - self.centre) / self.width) ** 2).sum(-1)
+
+
+class FullQuadraticMean(Mean):
+    """m(x) = m0 − ½ ‖Lᵀ (x − c)‖²: a Gaussian-shaped trend with a full Hessian −L Lᵀ.
+
+    L is lower triangular with a positive diagonal (so the bowl is always concave). Near
+    a sharp optimum log L is a correlated quadratic (a least-squares misfit: Gauss–Newton
+    Hessian JᵀJ); the diagonal :class:`NegativeQuadraticMean` cannot follow a ridge that
+    runs across the axes, this one can, and the GP then only models what is left.
+    """
+
+    def __init__(self, dim: int, centre: torch.Tensor, height: float, factor: torch.Tensor):
+        super().__init__()
+        f64 = torch.float64
+        rows, cols = torch.tril_indices(dim, dim, -1)
+        self.register_buffer("rows", rows)
+        self.register_buffer("cols", cols)
+        self.register_parameter("constant", torch.nn.Parameter(torch.tensor(height, dtype=f64)))
+        self.register_parameter("centre", torch.nn.Parameter(centre.to(f64).clone().reshape(dim)))
+        self.register_parameter("raw_diag", torch.nn.Parameter(torch.zeros(dim, dtype=f64)))
+        self.register_constraint("raw_diag", Positive())
+        self.register_parameter(
+            "lower", torch.nn.Parameter(factor.to(f64)[rows, cols].clone().reshape(-1))
+        )
+        self.initialize(raw_diag=self.raw_diag_constraint.inverse_transform(factor.diagonal()))
+
+    @property
+    def factor(self) -> torch.Tensor:
+        """L (q x q), lower triangular, in unit-cube units."""
+        diag = self.raw_diag_constraint.transform(self.raw_diag)
+        out = torch.diag(diag)
+        return out.index_put((self.rows, self.cols), self.lower)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(... x n x q) -> (... x n)."""
+        v = (x - self.centre) @ self.factor
+        return self.constant - 0.5 * (v**2).sum(-1)
 
 
 @dataclass(frozen=True)
@@ -205,10 +246,12 @@ class Surrogate:
         self._inv_ls = (1.0 / covar.base_kernel.lengthscale.detach().reshape(-1)).clone()
         self._outputscale = float(covar.outputscale.detach())
         mm = model.mean_module
+        self._full: tuple[torch.Tensor, torch.Tensor] | None = None
+        self._quadratic: tuple[torch.Tensor, torch.Tensor] | None = None
         if isinstance(mm, NegativeQuadraticMean):
             self._quadratic = (mm.centre.detach().clone(), mm.width.detach().clone())
-        else:
-            self._quadratic = None
+        elif isinstance(mm, FullQuadraticMean):
+            self._full = (mm.centre.detach().clone(), mm.factor.detach().clone())
         self._mean_constant = float(mm.constant.detach())
         self._y_mean = float(model.outcome_transform.means.detach().reshape(()))
         self._y_std = float(model.outcome_transform.stdvs.detach().reshape(()))
@@ -234,6 +277,9 @@ class Surrogate:
         return self._outputscale * (1.0 + r + r**2 / 3.0) * torch.exp(-r)
 
     def _prior_mean(self, u: torch.Tensor) -> torch.Tensor:
+        if self._full is not None:
+            centre, factor = self._full
+            return self._mean_constant - 0.5 * (((u - centre) @ factor) ** 2).sum(-1)
         if self._quadratic is not None:
             centre, width = self._quadratic
             return self._mean_constant - 0.5 * (((u - centre) / width) ** 2).sum(-1)
@@ -315,7 +361,48 @@ mean; capped at 100: 2.4 s, leave-one-out score 1.032 against 1.035)."""
 
 
 def _optimizer_options(mean: str) -> dict[str, Any]:
-    return {"options": {"maxiter": _QUADRATIC_MAXITER}} if mean == "quadratic" else {}
+    quadratic = mean in ("quadratic", "full_quadratic")
+    return {"options": {"maxiter": _QUADRATIC_MAXITER}} if quadratic else {}
+
+
+def _initial_full_quadratic_mean(x: torch.Tensor, z: torch.Tensor) -> FullQuadraticMean:
+    """The full negative quadratic trend, started at the least-squares quadratic fit.
+
+    z ≈ b0 + bᵀu + uᵀ B u (B symmetric) by least squares (normal equations, as in
+    :func:`_initial_quadratic_mean`); A = −2 B with its eigenvalues raised to at least
+    0.01 (a width of at most 10 unit-cube units: a concave bowl), c = A⁻¹ b, L the
+    Cholesky factor of A, the height anchored at the best point. With fewer points
+    than the quadratic has coefficients the diagonal start is used.
+
+    Args:
+        x: (n x q) unit-cube inputs.
+        z: (n,) standardised outputs.
+    """
+    n, q = x.shape
+    diagonal = _initial_quadratic_mean(x, z)
+    best = x[int(torch.argmax(z))]
+    rows, cols = torch.triu_indices(q, q)
+    n_coef = 1 + q + rows.numel()
+    if n < n_coef + q:
+        with torch.no_grad():
+            factor = torch.diag(1.0 / diagonal.width.detach())
+            return FullQuadraticMean(q, diagonal.centre.detach(), float(diagonal.constant), factor)
+    pairs = x[:, rows] * x[:, cols]
+    features = torch.cat([torch.ones(n, 1, dtype=x.dtype), x, pairs], dim=1)
+    gram = features.T @ features
+    ridge = 1e-10 * torch.trace(gram) * torch.eye(n_coef, dtype=x.dtype)
+    coef = torch.linalg.solve(gram + ridge, features.T @ z)
+    b = coef[1 : q + 1]
+    upper = torch.zeros(q, q, dtype=x.dtype).index_put((rows, cols), coef[q + 1 :])
+    hessian_half = 0.5 * (upper + upper.T)  # B: the diagonal counted once, pairs split
+    a = -2.0 * hessian_half
+    a = 0.5 * (a + a.T)
+    values, vectors = torch.linalg.eigh(a)
+    a = (vectors * values.clamp_min(0.01)) @ vectors.T
+    centre = torch.linalg.solve(a, b).clamp(-0.5, 1.5)
+    factor = torch.linalg.cholesky(a)
+    curvature = float((((best - centre) @ factor) ** 2).sum())
+    return FullQuadraticMean(q, centre, float(z.max()) + 0.5 * curvature, factor)
 
 
 def _initial_quadratic_mean(x: torch.Tensor, z: torch.Tensor) -> NegativeQuadraticMean:
@@ -423,9 +510,11 @@ def _fit_one(
     )
     with torch.random.fork_rng():
         torch.manual_seed(seed)
+        std_z = ((train_z - train_z.mean()) / train_z.std())[:, 0]
         if settings.mean == "quadratic":
-            std_z = ((train_z - train_z.mean()) / train_z.std())[:, 0]
             mean_module: Mean = _initial_quadratic_mean(train_x, std_z)
+        elif settings.mean == "full_quadratic":
+            mean_module = _initial_full_quadratic_mean(train_x, std_z)
         else:
             mean_module = ConstantMean()
         model = SingleTaskGP(

@@ -1,0 +1,167 @@
+"""Search box (trust region) of the calibration loop: zoom onto a sharp posterior.
+
+Why. With paired data (each measured run on its own measured track) the posterior of
+the demo's seven parameters is 5e-5 to 3e-3 of each admissible width wide, while log L
+falls by 10³–10⁴ nats across C_w. One stationary GP over the whole of C_w cannot model
+both scales: its lengthscales follow the far field, the refinement never resolves the
+peak and the search stops tens of nats below the true maximum (benchmarks/coverage.py,
+issue 10). The loop therefore works in a *search box* B ⊂ C_w that follows the
+posterior:
+
+- the surrogate is fitted in B's own unit cube, on the evaluations inside B widened by
+  ``margin`` box widths on each side (at least ``min_points`` of them: the nearest in
+  box-scaled Chebyshev distance); its lengthscale priors, the acquisition, the
+  refinement candidates, the held-out check and the final MCMC all live in B;
+- :func:`next_box` *shrinks* a coordinate of B to the surrogate posterior's median ±
+  ``half_width_sd`` posterior sd (never excluding the best evaluated point) when that is
+  at most ``max_ratio`` of B's current width, and *grows* B (one box width outwards,
+  within C_w) on any side where posterior draws press against an inner face of B —
+  so a box that missed the mass moves to it instead of truncating it;
+- :func:`box_edge` turns a posterior that still presses against an inner face at the
+  end into the reliability reason ``search_box_edge`` (the box cut the posterior: the
+  result is not trusted).
+
+The prior is uniform on C_w; restricted to B it is uniform on B, so the posterior in
+B is the posterior on C_w whenever B holds its mass — which :func:`box_edge` checks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from susp_bo.calibration.design import from_unit, to_unit
+
+Reason = dict
+
+
+def training_mask(
+    x: np.ndarray, box: np.ndarray, margin: float = 0.5, min_points: int = 10
+) -> np.ndarray:
+    """Which evaluations the surrogate of box ``box`` is fitted on.
+
+    Args:
+        x: (n x q) evaluated parameters, physical units.
+        box: (2 x q) search box, physical units.
+        margin: points up to ``margin`` box widths outside the box on every side are kept.
+        min_points: at least this many points are kept (the nearest to the box centre in
+            box-scaled Chebyshev distance), or all of them when n is smaller.
+
+    Returns:
+        (n,) boolean mask.
+    """
+    u = to_unit(np.asarray(x, dtype=np.float64), box)
+    distance = np.max(np.abs(u - 0.5), axis=1)  # 0.5 on the box faces
+    keep = distance <= 0.5 + margin
+    if keep.sum() < min(min_points, len(x)):
+        nearest = np.argsort(distance, kind="stable")[: min(min_points, len(x))]
+        keep[nearest] = True
+    return keep
+
+
+def _inner_faces(box: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """(2 x q) True where a face of ``box`` lies strictly inside C_w."""
+    width = bounds[1] - bounds[0]
+    return np.stack([box[0] > bounds[0] + 1e-12 * width, box[1] < bounds[1] - 1e-12 * width])
+
+
+def face_pressure(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
+    """(2 x q) share of the draws within ``strip`` box widths of each face (lower, upper).
+
+    Args:
+        draws_local: (n x q) posterior draws in the box's unit cube.
+        strip: strip width as a fraction of the box width.
+    """
+    u = np.asarray(draws_local, dtype=np.float64)
+    return np.stack([np.mean(u < strip, axis=0), np.mean(u > 1.0 - strip, axis=0)])
+
+
+def next_box(
+    draws_local: np.ndarray,
+    box: np.ndarray,
+    bounds: np.ndarray,
+    best: np.ndarray,
+    half_width_sd: float = 8.0,
+    max_ratio: float = 0.5,
+    pressure: float = 0.01,
+) -> np.ndarray | None:
+    """The next search box, or None when it stays as it is.
+
+    Args:
+        draws_local: (n x q) surrogate posterior draws in ``box``'s unit cube.
+        box: (2 x q) current search box, physical units.
+        bounds: (2 x q) admissible bounds C_w.
+        best: (q,) best evaluated point, physical units (always kept inside the box).
+        half_width_sd: half-width of a shrunk coordinate in posterior sd.
+        max_ratio: a coordinate shrinks only to at most this fraction of its width.
+        pressure: share of the draws in the 5 % strip at an inner face above which the box
+            grows on that side (a flat posterior puts 0.05 there).
+
+    Returns:
+        (2 x q) new box inside C_w, or None.
+    """
+    box = np.asarray(box, dtype=np.float64)
+    bounds = np.asarray(bounds, dtype=np.float64)
+    d = from_unit(np.asarray(draws_local, dtype=np.float64), box)
+    centre = np.median(d, axis=0)
+    sd = d.std(axis=0)
+    lo = np.minimum(centre - half_width_sd * sd, best)
+    hi = np.maximum(centre + half_width_sd * sd, best)
+    pad = 0.05 * (hi - lo)
+    lo, hi = lo - pad, hi + pad
+    width = box[1] - box[0]
+    new = box.copy()
+    shrink = (hi - lo) <= max_ratio * width
+    new[0, shrink] = lo[shrink]
+    new[1, shrink] = hi[shrink]
+    grow = (face_pressure(draws_local) > pressure) & _inner_faces(box, bounds)
+    new[0] = np.where(grow[0], box[0] - width, new[0])
+    new[1] = np.where(grow[1], box[1] + width, new[1])
+    new = np.stack([np.maximum(new[0], bounds[0]), np.minimum(new[1], bounds[1])])
+    tiny = (new[1] - new[0]) <= 1e-9 * (bounds[1] - bounds[0])
+    new[:, tiny] = box[:, tiny]  # a degenerate coordinate keeps its old extent
+    if np.array_equal(new, box):
+        return None
+    return new
+
+
+def box_edge(
+    draws_local: np.ndarray,
+    box: np.ndarray,
+    bounds: np.ndarray,
+    names: Sequence[str],
+    pressure: float = 0.01,
+) -> Reason | None:
+    """``search_box_edge`` when the final posterior presses against an inner box face.
+
+    Args:
+        draws_local: (n x q) final posterior draws in the box's unit cube.
+        box: (2 x q) final search box, physical units.
+        bounds: (2 x q) admissible bounds C_w.
+        names: (q,) parameter names.
+        pressure: as in :func:`next_box`.
+    """
+    hit = (face_pressure(draws_local) > pressure) & _inner_faces(box, bounds)
+    if not hit.any():
+        return None
+    parts = [
+        f"{names[k]} ({side} face {box[s, k]:.4g})"
+        for s, side in enumerate(("lower", "upper"))
+        for k in range(len(names))
+        if hit[s, k]
+    ]
+    return {
+        "code": "search_box_edge",
+        "message": "the posterior presses against the search box, which cut it: "
+        + ", ".join(parts),
+        "parameters": sorted({names[k] for k in np.nonzero(hit.any(axis=0))[0]}),
+    }
+
+
+def to_global_unit(draws_local: np.ndarray, box: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Draws in the box's unit cube → the unit cube of C_w (same shape)."""
+    d = np.asarray(draws_local, dtype=np.float64)
+    q = d.shape[-1]
+    flat = to_unit(from_unit(d.reshape(-1, q), box), bounds)
+    return flat.reshape(d.shape)

@@ -1,0 +1,146 @@
+"""The search box (trust region): training set, shrink, grow, edge verdict, and the loop.
+
+The loop test uses a sharp 3-D Gaussian log L whose posterior sd is 1e-3 of each
+admissible width (as paired data give): its exact posterior is known, so the test
+checks that the box follows the mass and that the intervals are right, not only that
+the code runs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from susp_bo.calibration.loop import calibrate
+from susp_bo.calibration.settings import CalibrationSettings
+from susp_bo.calibration.surrogate import SurrogateSettings
+from susp_bo.calibration.trust_region import (
+    box_edge,
+    face_pressure,
+    next_box,
+    to_global_unit,
+    training_mask,
+)
+
+BOUNDS = np.array([[0.0, 10.0], [1.0, 30.0]])
+
+
+def test_training_mask_keeps_the_box_and_its_margin_only() -> None:
+    box = np.array([[4.0, 10.0], [6.0, 20.0]])  # widths 2 and 10
+    x = np.array(
+        [
+            [5.0, 15.0],  # centre
+            [3.1, 15.0],  # 0.45 widths outside: kept
+            [2.9, 15.0],  # 0.55 widths outside: dropped
+            [5.0, 25.9],  # 0.59 widths above: dropped
+            [5.0, 24.9],  # 0.49 widths above: kept
+        ]
+    )
+    mask = training_mask(x, box, margin=0.5, min_points=1)
+    assert mask.tolist() == [True, True, False, False, True]
+
+
+def test_training_mask_adds_the_nearest_points_when_too_few() -> None:
+    box = np.array([[4.0, 10.0], [6.0, 20.0]])
+    x = np.array([[5.0, 15.0], [0.0, 15.0], [9.0, 15.0], [5.0, 29.0]])
+    mask = training_mask(x, box, margin=0.5, min_points=3)
+    # distances in box widths: 0, 2.5, 2.0, 1.4 -> the nearest three
+    assert mask.tolist() == [True, False, True, True]
+
+
+def _draws(centre: np.ndarray, sd: np.ndarray, box: np.ndarray, n: int = 20000) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    phys = centre + sd * rng.standard_normal((n, centre.size))
+    return (phys - box[0]) / (box[1] - box[0])
+
+
+def test_next_box_shrinks_to_the_posterior_and_keeps_the_best_point() -> None:
+    box = np.array([[0.0, 0.0], [10.0, 30.0]])
+    centre, sd = np.array([5.0, 12.0]), np.array([0.01, 0.02])
+    best = np.array([5.3, 12.0])  # 30 sd away in the first coordinate
+    new = next_box(_draws(centre, sd, box), box, box, best, half_width_sd=8.0)
+    assert new is not None
+    assert new[0, 0] <= 5.0 - 8 * 0.01 * 0.95 and new[1, 0] >= best[0]  # best kept inside
+    assert new[1, 1] - new[0, 1] == pytest.approx(2 * 8 * 0.02 * 1.1, rel=0.05)
+
+
+def test_next_box_does_not_shrink_a_coordinate_by_less_than_half() -> None:
+    box = np.array([[0.0, 0.0], [10.0, 30.0]])
+    centre, sd = np.array([5.0, 15.0]), np.array([0.01, 3.0])  # 2nd: 8 sd = 24 of 30
+    new = next_box(_draws(centre, sd, box), box, box, centre)
+    assert new is not None
+    assert (new[0, 1], new[1, 1]) == (0.0, 30.0)
+    assert new[1, 0] - new[0, 0] < 1.0
+
+
+def test_next_box_grows_where_the_posterior_presses_on_an_inner_face() -> None:
+    bounds = np.array([[0.0, 0.0], [10.0, 30.0]])
+    box = np.array([[4.0, 10.0], [6.0, 20.0]])
+    centre, sd = np.array([6.0, 15.0]), np.array([0.3, 1.0])  # cut at the upper face of x1
+    draws = _draws(centre, sd, box)
+    draws = draws[(draws >= 0).all(1) & (draws <= 1).all(1)]  # MCMC stays in the box
+    assert face_pressure(draws)[1, 0] > 0.05
+    new = next_box(draws, box, bounds, centre)
+    assert new is not None and new[1, 0] == pytest.approx(8.0)  # one box width up
+    assert box_edge(draws, box, bounds, ["a", "b"])["parameters"] == ["a"]
+
+
+def test_faces_on_the_admissible_bounds_never_grow_nor_flag() -> None:
+    bounds = np.array([[0.0, 0.0], [10.0, 30.0]])
+    box = np.array([[0.0, 10.0], [2.0, 20.0]])  # lower face of x1 is the bound
+    draws = _draws(np.array([0.0, 15.0]), np.array([0.3, 1.0]), box)
+    draws = draws[(draws >= 0).all(1) & (draws <= 1).all(1)]
+    new = next_box(draws, box, bounds, np.array([0.1, 15.0]), max_ratio=0.0)
+    assert new is None
+    assert box_edge(draws, box, bounds, ["a", "b"]) is None
+
+
+def test_to_global_unit_maps_box_coordinates_to_admissible_ones() -> None:
+    bounds = np.array([[0.0, 0.0], [10.0, 30.0]])
+    box = np.array([[4.0, 10.0], [6.0, 20.0]])
+    u = np.array([[[0.0, 0.0], [1.0, 0.5]]])
+    np.testing.assert_allclose(to_global_unit(u, box, bounds), [[[0.4, 1 / 3], [0.6, 0.5]]])
+
+
+class SharpGaussian:
+    """log L of a 3-D Gaussian with sd 1e-3 of each width and correlation 0.8 (1, 2)."""
+
+    def __init__(self) -> None:
+        self.bounds = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 4.0]])
+        width = self.bounds[1] - self.bounds[0]
+        self.mean = self.bounds[0] + np.array([0.37, 0.61, 0.52]) * width
+        sd = 1e-3 * width
+        corr = np.array([[1.0, 0.8, 0.0], [0.8, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        self.cov = corr * np.outer(sd, sd)
+        self.precision = np.linalg.inv(self.cov)
+
+    def __call__(self, w: np.ndarray) -> np.ndarray:
+        d = np.atleast_2d(w) - self.mean
+        return -0.5 * np.einsum("ni,ij,nj->n", d, self.precision, d)
+
+
+def test_loop_with_trust_region_resolves_a_posterior_1e3_of_the_box() -> None:
+    target = SharpGaussian()
+    settings = CalibrationSettings(
+        seed=3,
+        max_evaluations=60,
+        batch_size=4,
+        initial_design_size=15,
+        check_points=4,
+        trust_region=True,
+        surrogate=SurrogateSettings(mean="full_quadratic"),
+        mcmc_chains=32,
+        mcmc_warmup=300,
+        mcmc_samples=400,
+        candidate_count=128,
+    )
+    result = calibrate(target, target.bounds, ["a", "b", "c"], settings, progress=False)
+    sd = np.sqrt(np.diag(target.cov))
+    box = result.search_box
+    assert box is not None
+    assert np.all(box[1] - box[0] < 0.05 * (target.bounds[1] - target.bounds[0]))
+    assert np.all((box[0] < target.mean) & (target.mean < box[1]))
+    np.testing.assert_allclose(result.summary.mean, target.mean, atol=0.5 * sd.max())
+    np.testing.assert_allclose(result.summary.sd, sd, rtol=0.2)
+    corr = np.corrcoef(result.samples[:, :2].T)[0, 1]
+    assert corr == pytest.approx(0.8, abs=0.1)
