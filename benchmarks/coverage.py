@@ -332,6 +332,9 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         "r_hat_max": float(np.max(result.summary.r_hat)),
         "ess_min": float(np.min(result.summary.ess)),
         "check": None if result.check is None else result.check.verdict,
+        "verdict": None if result.reliability is None else result.reliability.verdict,
+        "reasons": [] if result.reliability is None else list(result.reliability.codes),
+        "search_box": None if result.search_box is None else result.search_box.tolist(),
         "n_evaluations": int(result.n_evaluations)
         + (0 if zoom_box is None else int(first.n_evaluations)),
         "zoom_box": None if zoom_box is None else zoom_box.tolist(),

@@ -1,0 +1,102 @@
+"""What :func:`susp_bo.calibration.loop.calibrate` returns: the result and its iteration reports."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from susp_bo.calibration.posterior import PosteriorSummary
+from susp_bo.calibration.reliability import Reliability
+from susp_bo.calibration.surrogate import Surrogate
+from susp_bo.calibration.surrogate_check import SurrogateCheck
+
+Phase = Literal["design", "ego", "refine", "check"]
+
+
+@dataclass(frozen=True)
+class IterationReport:
+    """One refinement iteration, passed to ``on_iteration`` and logged as one line."""
+
+    iteration: int
+    phase: Phase
+    n_evaluations: int
+    best_log_likelihood: float
+    best_parameters: np.ndarray
+    criterion: float
+    n_failed: int
+
+    def line(self) -> str:
+        """One-line summary."""
+        name = {"ego": "EI/spread", "check": "max |check error|"}.get(self.phase, "post. sd[log L]")
+        return (
+            f"iter {self.iteration:3d} [{self.phase}] evaluations {self.n_evaluations}"
+            f" best log L {self.best_log_likelihood:.6g} {name} {self.criterion:.3g}"
+            f" failed {self.n_failed}"
+        )
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Result of :func:`calibrate`.
+
+    Attributes:
+        names: (q,) parameter names.
+        bounds: (2 x q) bounds of C_w.
+        X: (n x q) evaluated parameters, physical units, in evaluation order.
+        y: (n,) log L values as returned (NaN = failed).
+        surrogate: the final fitted surrogate (unit-cube inputs).
+        draws: (n_chains x n_draws x q) posterior draws, physical units.
+        summary: posterior summary (physical units).
+        n_evaluations: number of log L evaluations.
+        stop_reason: "budget", "converged" or "ego_converged" (no refinement).
+        history: one report per refinement iteration.
+        mcmc: kernel diagnostics of the final run (acceptance rate, scale).
+        check: the held-out check of the surrogate posterior (None when
+            ``check_points`` is 0 or no budget was left for it).
+        reliability: the verdict on this result (:mod:`.reliability`).
+        search_box: (2 x q) the final search box (physical units) the surrogate, the
+            check points and the MCMC worked in: C_w itself unless
+            ``settings.trust_region`` (:mod:`.trust_region`).
+    """
+
+    names: tuple[str, ...]
+    bounds: np.ndarray
+    X: np.ndarray
+    y: np.ndarray
+    surrogate: Surrogate
+    draws: np.ndarray
+    summary: PosteriorSummary
+    n_evaluations: int
+    stop_reason: str
+    history: tuple[IterationReport, ...]
+    mcmc: dict[str, float]
+    check: SurrogateCheck | None = None
+    reliability: Reliability | None = None
+    search_box: np.ndarray | None = None
+
+    @property
+    def samples(self) -> np.ndarray:
+        """Posterior draws pooled over chains, (draws x q), physical units."""
+        return self.draws.reshape(-1, self.draws.shape[-1])
+
+    @property
+    def box(self) -> np.ndarray:
+        """(2 x q) the box the surrogate works in (its unit cube): the search box or C_w."""
+        return self.bounds if self.search_box is None else self.search_box
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (physical units)."""
+        out = self.summary.to_dict()
+        out.update(
+            bounds=self.bounds.tolist(),
+            n_evaluations=int(self.n_evaluations),
+            n_failed=int(np.sum(~np.isfinite(self.y))),
+            stop_reason=self.stop_reason,
+            mcmc=dict(self.mcmc),
+            surrogate_check=None if self.check is None else self.check.to_dict(self.box),
+            search_box=None if self.search_box is None else self.search_box.tolist(),
+            reliability=None if self.reliability is None else self.reliability.to_dict(),
+        )
+        return out
