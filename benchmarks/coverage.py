@@ -334,6 +334,7 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         "check": None if result.check is None else result.check.verdict,
         "verdict": None if result.reliability is None else result.reliability.verdict,
         "reasons": [] if result.reliability is None else list(result.reliability.codes),
+        "evidence": None if result.reliability is None else dict(result.reliability.evidence),
         "search_box": None if result.search_box is None else result.search_box.tolist(),
         "n_evaluations": int(result.n_evaluations)
         + (0 if zoom_box is None else int(first.n_evaluations)),
