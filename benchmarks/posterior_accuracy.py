@@ -13,8 +13,11 @@ known) and each budget, this script runs in the same process:
   at each refit);
 - ``susp_bo-ego``: EGO only (no posterior refinement), i.e. the paper's method
   made batch-parallel;
+- ``susp_bo-noise``: the default with ``SurrogateSettings(noise="learned")`` (the GP
+  fits an observation noise of log L; for a stochastic simulator);
 - ``pyvbmc``: PyVBMC (Acerbi's VBMC) at ``max_fun_evals`` = the same budget, on the
-  same unit-cube log density with the same bounds (if ``pyvbmc`` is installed);
+  same unit-cube log density with the same bounds (if ``pyvbmc`` is installed); on a
+  noisy target it is told the noise sd (``specify_target_noise``);
 - ``bolfi``: ELFI's BOLFI (default LCB acquisition, GP on the discrepancy
   log(−log L), ELFI's threshold posterior; see :func:`run_bolfi`), if ``elfi`` is
   importable. It is not installed in the project venv (its pins would downgrade
@@ -28,7 +31,11 @@ known) and each budget, this script runs in the same process:
       /work/elfi-venv/bin/pip install elfi
       /work/elfi-venv/bin/python benchmarks/posterior_accuracy.py --methods bolfi
 
-and prints MMTV (mean marginal total variation against the exact marginals; 0 is
+Noisy targets (:class:`NoisyTarget`) get a fresh noise stream per run, seeded by the
+run's seed. Rows are written to ``--out`` after every run; ``--resume`` keeps the rows
+already there (long comparisons can be run one method or seed at a time into one file).
+
+The script prints MMTV (mean marginal total variation against the exact marginals; 0 is
 perfect, ≈0.005 is the floor of 1e5 exact draws), the evaluations actually used and
 the wall time. Ratios are against PyVBMC in the same run.
 
