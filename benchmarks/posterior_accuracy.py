@@ -266,9 +266,11 @@ def summarize_rows(rows: list[dict], methods: list[str], threshold: float = 0.05
             verdict = ""
             if method != "pyvbmc" and key[0] in ROBUSTNESS_TARGETS:
                 ok = worst <= threshold
-                if ref is not None:
+                if ref is None:
+                    verdict = f"  <= {threshold}: {'yes' if ok else 'NO'}; PyVBMC not run"
+                else:
                     ok = ok and med <= ref[0] and worst <= ref[1]
-                verdict = "  MET" if ok else "  NOT MET"
+                    verdict = "  MET" if ok else "  NOT MET"
             lines.append(
                 f"{key[0]:24s} {key[1]:5d} {method:18s} median {med:.4f} worst {worst:.4f} "
                 f"mean {mean:.4f} (n={n}){verdict}"
