@@ -41,6 +41,9 @@ def propose_ei_batch(
 ) -> tuple[torch.Tensor, float]:
     """Joint batch maximising qLogEI on the latent output.
 
+    The incumbent is the best observed latent value, or with a learned observation noise
+    the best GP mean at the evaluated points.
+
     Args:
         surrogate: the fitted surrogate.
         batch_size: number of points b (>= 1).
@@ -54,6 +57,11 @@ def propose_ei_batch(
     model = surrogate.model
     train_z = model.outcome_transform.untransform(model.train_targets[:, None])[0]
     best = float(train_z.max())
+    if surrogate.learned_noise:
+        # noisy observations: the best observed value is biased upwards by the noise; the
+        # best posterior mean at the evaluated points is the incumbent (noisy EI, plug-in)
+        with torch.no_grad():
+            best = float(surrogate.latent_mean(surrogate.train_x).max())
     spread = float(train_z.std()) if train_z.numel() > 1 else 1.0
     q = surrogate.dim
     bounds = torch.stack([torch.zeros(q), torch.ones(q)]).to(torch.float64)
