@@ -57,6 +57,54 @@ PyVBMC 1.5.0 rows do not depend on this code:
     weakly_identified_7d    .022/.006/.006   .009/.006/.006     .032/.017/.024     .15/.06/.06
     oscillator_2d           —                .011/.007/.006     .010/.008/.009     .40/.12/.13
 
+Surrogate robustness (issue 10, part 3; session 4). Targets of
+:mod:`susp_bo.calibration.test_functions.robustness`, full budget 50 (q + 2), batches
+of 8, one process at a time under ``nice -n 10`` on 2 cores shared with CI runs (load
+5–8), each command appending to one file::
+
+    python benchmarks/posterior_accuracy.py --budget-fractions 1.0 --out rows.json \
+        --resume --targets curved_chain_5d student_t_6d trimodal_5d noisy_gaussian_7d \
+        --methods susp_bo susp_bo-noise pyvbmc --seeds 0 1 2
+
+(run as several such commands, one target/method/seed group at a time; the PyVBMC runs
+not listed below were not reached: PyVBMC took 34 min for one 350-evaluation run here).
+MMTV, median / worst seed over the seeds run; target: <= 0.05 on every seed and no worse
+than PyVBMC:
+
+    target             evals  susp_bo             susp_bo-noise       PyVBMC 1.5.0  target
+    curved_chain_5d      350  .128 / .136         —                   .152 (s 0)    NOT MET
+    student_t_6d         400  .033 / .036         —                   not run       <=.05 met
+    trimodal_5d          350  .178 / .191         —                   not run       NOT MET
+    noisy_gaussian_7d    450  .114 (seed 0 only)  .055 / .060         not run       NOT MET
+
+Per seed 0 / 1 / 2: curved .136 .121 .128; Student-t .036 .032 .033; trimodal .164
+.191 .178; noisy with the learned noise .055 .037 .060. "NOT MET": worst seed above
+0.05. The comparison with PyVBMC is made on the curved target only (one PyVBMC seed,
+below all three of ours); on the others it was not run.
+
+MMTV here uses the KDE bandwidth min(Silverman, AMISE-optimal for the exact marginal)
+(:func:`marginal_total_variation`; Silverman alone blurs the trimodal marginals: 0.03 of
+MMTV from 4e4 exact draws). It changes the earlier targets' scores only where the oracle
+is smaller (one component of banana_2d, two of weakly_identified_7d, by 8–17 %).
+
+Wall time per susp_bo run 120–240 s (learned noise 306–700 s). Diagnosis of the misses
+(seed 0, same settings, reproduced bit for bit):
+
+- trimodal_5d: the surrogate is right and the sampler is not. All three modes were
+  found (130 / 48 / 45 evaluations within Mahalanobis² < 20 of each); the final draws put
+  0.70 / 0.13 / 0.17 of their mass in them against 0.5 / 0.3 / 0.2, and with the draws
+  reweighted to the exact mode weights the MMTV is 0.025. The random-walk chains do not
+  cross between modes 9+ sd apart, so the weights are set by where the chains start.
+  (The MH kernel on the *exact* trimodal density from exact starts: MMTV 0.024–0.031 per
+  parameter; on the curved chain 0.009–0.012.)
+- curved_chain_5d: the surrogate is wrong in the banana's arms: at exact posterior draws
+  it is 11 nats too low at the 5 % quantile (median-centred), and the surrogate's draws
+  reweighted by exp(log L − log L̃) still score 0.065–0.107 per parameter (they do not
+  cover the arms). The held-out check said ``ok`` on this run (a silent failure, as in
+  the issue): its edge points along the principal directions do not probe the arms.
+- noisy_gaussian_7d: the learned noise halves the error of the fixed default, but the
+  worst seed is at 0.060.
+
 Oscillator at 50 evaluations over 10 seeds (susp_bo) vs 9 (PyVBMC): mean .0110 vs
 .0106, median .0091 vs .0102 — a tie. Every other cell of susp_bo is below PyVBMC and
 BOLFI; the constant mean ties PyVBMC on the banana at 50 and the Gaussian at 225.
