@@ -75,6 +75,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import statistics
 import subprocess
 import sys
@@ -104,9 +105,22 @@ LADDERS = {
     "wheel_out_of_roundness": ("amplitude_m", [3e-4, 1e-4, 5e-5, 2e-5, 1e-5]),
     "yaw_damper_series_stiffness": ("stiffness", [5e6, 1e7, 1.5e7, 2e7, 3e7]),
     "lateral_bump_stop": ("gap_m", [0.003, 0.005, 0.007, 0.009, 0.012]),
-    "air_spring_reservoir": ("stiffness_ratio", [2.5, 2.0, 1.5, 1.0, 0.5]),  # 3.0 = its bound
+    "air_spring_reservoir": ("stiffness_ratio", [3.0, 2.5, 2.0, 1.5, 1.0, 0.5]),
 }
 SPEEDS = (55.56, 83.33)
+
+
+CASE_SECONDS: list[float] = []
+"""Seconds of each fast-path case (synthesis + workflow), in the order run."""
+
+
+def _timed_case(simulator, spec, effect, **kwargs):
+    """Synthesise one fast-path case and run the workflow on it; its seconds are kept."""
+    started = time.perf_counter()
+    problem = synthesize_problem(spec, effect, **kwargs)
+    report = run_workflow(problem, simulator)
+    CASE_SECONDS.append(time.perf_counter() - started)
+    return report
 
 
 def _line(label: str, speed: float, noise: float, seed: int, report) -> str:
@@ -122,7 +136,8 @@ def _line(label: str, speed: float, noise: float, seed: int, report) -> str:
         f"{label:28s} {speed:5.1f} {noise:5.2f} {seed:4d}  {doc['verdict']:24s} "
         f"{doc['named_effect']!s:28s} {margin:7.1f} bands {len(doc['flagged']):3d} "
         f"gap {g0['value']:7.3g}->{g1['value']:<7.3g} all {g0['value_all_bins']:6.3g}->"
-        f"{g1['value_all_bins']:<6.3g} accepted {accepted}{why}"
+        f"{g1['value_all_bins']:<6.3g} accepted {accepted}{why} "
+        f"{CASE_SECONDS[-1] if CASE_SECONDS else float('nan'):.1f} s"
     )
 
 
@@ -141,7 +156,13 @@ def fast_mode(quick: bool, parts: list[str]) -> None:
         _fast_null(spec, simulator, seeds, noises)
     if "ladder" in parts:
         _fast_ladder(spec, simulator)
-    print(f"\nwall time {time.perf_counter() - started:.0f} s")
+    wall = time.perf_counter() - started
+    print(f"\nwall time {wall:.0f} s")
+    if CASE_SECONDS:
+        print(f"fast path: {len(CASE_SECONDS)} cases, {statistics.mean(CASE_SECONDS):.1f} s per "
+              f"case (median {statistics.median(CASE_SECONDS):.1f} s, max "
+              f"{max(CASE_SECONDS):.1f} s): {len(CASE_SECONDS) / sum(CASE_SECONDS):.3f} "
+              "cases per second")  # fmt: skip
 
 
 def _fast_names(spec, simulator, seeds, noises) -> None:
@@ -151,9 +172,8 @@ def _fast_names(spec, simulator, seeds, noises) -> None:
         for speed in SPEEDS:
             for noise in noises:
                 for seed in seeds:
-                    problem = synthesize_problem(spec, (name, values), nu=3, seed=seed,
-                                                 noise_m_s2=noise, speed_m_s=speed)  # fmt: skip
-                    report = run_workflow(problem, simulator)
+                    report = _timed_case(simulator, spec, (name, values), nu=3, seed=seed,
+                                         noise_m_s2=noise, speed_m_s=speed)  # fmt: skip
                     print(_line(name, speed, noise, seed, report), flush=True)
                     total += 1
                     hits += report.named_effect == name
@@ -177,9 +197,8 @@ def _fast_outside(spec, simulator, seeds) -> None:
     for kind in MODIFICATIONS:
         for speed in SPEEDS:
             for seed in seeds:
-                problem = synthesize_problem(spec, None, nu=3, seed=seed, noise_m_s2=0.02,
-                                             speed_m_s=speed, modification=kind)  # fmt: skip
-                report = run_workflow(problem, simulator)
+                report = _timed_case(simulator, spec, None, nu=3, seed=seed, noise_m_s2=0.02,
+                                     speed_m_s=speed, modification=kind)  # fmt: skip
                 print(_line(kind, speed, 0.02, seed, report), flush=True)
                 n_ool += 1
                 false_names += report.named_effect is not None
@@ -192,9 +211,8 @@ def _fast_null(spec, simulator, seeds, noises) -> None:
     for speed in SPEEDS:
         for noise in noises:
             for seed in [*seeds, 7, 8]:
-                problem = synthesize_problem(spec, None, nu=3, seed=100 + seed,
-                                             noise_m_s2=noise, speed_m_s=speed)  # fmt: skip
-                report = run_workflow(problem, simulator)
+                report = _timed_case(simulator, spec, None, nu=3, seed=100 + seed,
+                                     noise_m_s2=noise, speed_m_s=speed)  # fmt: skip
                 n_null += 1
                 null_any += bool(report.before.bands) or report.named_effect is not None
                 null_bins.append(report.before.flagged_fraction)
@@ -209,9 +227,8 @@ def _fast_ladder(spec, simulator) -> None:
             smallest, why = None, ""
             for value in ladder:
                 values = {**NOMINAL[name], key: value}
-                problem = synthesize_problem(spec, (name, values), nu=3, seed=1, noise_m_s2=0.02,
-                                             speed_m_s=speed)  # fmt: skip
-                report = run_workflow(problem, simulator)
+                report = _timed_case(simulator, spec, (name, values), nu=3, seed=1,
+                                     noise_m_s2=0.02, speed_m_s=speed)  # fmt: skip
                 if report.named_effect != name:
                     check = report.naming_check
                     why = f"{report.verdict}" + (
@@ -244,10 +261,8 @@ def _cli(*arguments: str) -> subprocess.CompletedProcess[str]:
                           text=True, check=False)  # fmt: skip
 
 
-def cli_case(case: str, folder: Path, args: argparse.Namespace) -> dict:
-    """synth → calibrate → diagnose for one case; returns the summary row."""
-    folder.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+def _synth_and_calibrate(case: str, folder: Path, args: argparse.Namespace) -> str | None:
+    """synth and the first calibration of one case; an error message or None."""
     base = base_rig_document(args.duration)
     base_file = folder / "base_rig.toml"
     base_file.write_text(tomli_w.dumps(base))
@@ -269,7 +284,7 @@ def cli_case(case: str, folder: Path, args: argparse.Namespace) -> dict:
     else:
         done = _cli("synth", str(base_file), *common)
     if done.returncode:
-        return {"case": case, "error": "synth: " + done.stderr[-500:]}
+        return "synth: " + done.stderr[-500:]
     study = folder / "study.toml"
     study.write_text(tomli_w.dumps({
         "rig": str(base_file), "data": str(data), "out": str(folder / "result"),
@@ -280,36 +295,106 @@ def cli_case(case: str, folder: Path, args: argparse.Namespace) -> dict:
         "mcmc": {"chains": 64, "draws": 1000, "warmup": 300},
     }))  # fmt: skip
     done = _cli("calibrate", str(study))
-    if done.returncode:
-        return {"case": case, "error": "calibrate: " + done.stderr[-500:]}
+    return "calibrate: " + done.stderr[-500:] if done.returncode else None
+
+
+def cli_case(case: str, folder: Path, args: argparse.Namespace) -> dict:
+    """synth → calibrate (→ resume while not trusted) → diagnose; returns the summary row.
+
+    With ``args.reuse`` and a calibration already in ``folder``, synth and the first
+    calibration are not redone (the seconds of earlier steps are kept in times.json).
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    times_file = folder / "times.json"
+    earlier = json.loads(times_file.read_text()) if times_file.exists() else {}
+    started = time.perf_counter()
+    study = folder / "study.toml"
     result_file = folder / "result" / "result.json"
-    payload = json.loads(result_file.read_text())
-    stand_in = "reliability" not in payload
-    if stand_in:  # before the reliability verdict exists: treated as trusted, and said so
-        payload["reliability"] = {"verdict": "trusted", "reasons": [],
-                                  "sentence": "stand-in: no reliability verdict yet"}  # fmt: skip
-        result_file.write_text(json.dumps(payload, indent=2))
-    done = _cli("diagnose", str(folder / "result"), "--out", str(folder / "diagnosis"),
-                "--budget", str(args.budget))  # fmt: skip
+    if not (args.reuse and result_file.exists()):
+        earlier = {}
+        error = _synth_and_calibrate(case, folder, args)
+        if error:
+            return {"case": case, "error": error}
+    rounds = list(earlier.get("rounds", []))
+    current = _reliability(result_file)
+    if not rounds or rounds[-1]["budget"] != current["budget"]:
+        rounds.append(current)
+    for _ in range(args.resume_rounds):
+        if rounds[-1]["verdict"] == "trusted":
+            break
+        budget = asked_budget(rounds[-1])  # what the verdict's sentence asks for
+        done = _cli("calibrate", str(study), "--resume", "--budget", str(budget))
+        if done.returncode:
+            return {"case": case, "error": "calibrate --resume: " + done.stderr[-500:]}
+        rounds.append(_reliability(result_file))
+    calibrated_s = earlier.get("calibrate_s", 0.0) + time.perf_counter() - started
+    times_file.write_text(json.dumps({"calibrate_s": calibrated_s, "rounds": rounds}))
+    shutil.rmtree(folder / "diagnosis", ignore_errors=True)
+    diagnosed = time.perf_counter()
+    diagnose = ["diagnose", str(folder / "result"), "--out", str(folder / "diagnosis"),
+                "--budget", str(args.budget)]  # fmt: skip
+    if args.force:
+        diagnose.append("--force")
+    done = _cli(*diagnose)
     if done.returncode:
         return {"case": case, "error": "diagnose: " + done.stderr[-500:]}
     doc = json.loads((folder / "diagnosis" / "discrepancy.json").read_text())
-    augmented = doc.get("augmented") or {}
+    finding = doc.get("forced_diagnosis") or doc  # --force on an untrusted fit: kept apart
+    augmented = finding.get("augmented") or {}
+    check = finding.get("naming_check") or {}
     return {
         "case": case,
         "kind": "in" if case in NOMINAL else ("out" if case in MODIFICATIONS else "null"),
+        "truth": truth_label(case),
+        "base": [{k: r[k] for k in ("budget", "verdict", "reasons")} for r in rounds],
+        "base_sentence": rounds[-1]["sentence"],
         "verdict": doc["verdict"],
-        "named": doc.get("named_effect"),
-        "bands": len(doc.get("flagged") or []),
-        "flagged_fraction": (doc.get("detection") or {}).get("flagged_fraction"),
+        "forced": doc.get("forced_diagnosis") is not None,
+        "forced_verdict": finding["verdict"] if doc.get("forced_diagnosis") else None,
+        "named": finding.get("named_effect"),
+        "bands": len(finding.get("flagged") or []),
+        "flagged_fraction": (finding.get("detection") or {}).get("flagged_fraction"),
         "accepted": augmented.get("accepted"),
         "lpd": [augmented.get(f"log_predictive_density_{s}") for s in ("before", "after")],
         "share": [augmented.get(f"flagged_fraction_{s}") for s in ("before", "after")],
-        "best": (doc.get("naming_check") or {}).get("effect"),
-        "reasons": [r["code"] for r in (doc.get("naming_check") or {}).get("reasons", [])],
-        "reliability": "stand-in trusted" if stand_in else payload["reliability"]["verdict"],
-        "wall_s": round(time.perf_counter() - started),
+        "best": check.get("effect"),
+        "reasons": [r["code"] for r in check.get("reasons", [])],
+        "calibrate_s": round(calibrated_s),
+        "diagnose_s": round(time.perf_counter() - diagnosed),
+        "wall_s": round(calibrated_s + time.perf_counter() - diagnosed),
     }
+
+
+def truth_label(case: str) -> str:
+    """The hidden truth of a case, in one short string (the base truth is WORN_TRUTH)."""
+    if case in NOMINAL:
+        return ",".join(f"{k}={v:g}" for k, v in NOMINAL[case].items())
+    if case in MODIFICATIONS:
+        return ",".join(f"{k}={v:g}" for k, v in get_modification(case).parameters.items())
+    return "base model (no effect)"
+
+
+def _reliability(result_file: Path) -> dict:
+    """The study's real reliability verdict: budget, verdict, reason codes, sentence."""
+    payload = json.loads(result_file.read_text())
+    block = payload.get("reliability")
+    if block is None:
+        raise SystemExit(f"{result_file}: no reliability verdict (a result from an older version)")
+    evidence = block.get("evidence", {})
+    return {
+        "budget": int(evidence.get("budget", 0)),
+        "minimum": int(evidence.get("minimum_budget", 0)),
+        "verdict": block["verdict"],
+        "reasons": [r["code"] for r in block.get("reasons", [])],
+        "sentence": block.get("sentence", ""),
+    }
+
+
+def asked_budget(reliability: dict) -> int:
+    """The budget the verdict's advice names (susp_bo.calibration.reliability.sentence)."""
+    if reliability["reasons"][:1] == ["budget_too_small"]:
+        return reliability["minimum"]
+    return max(2 * reliability["budget"], reliability["minimum"])
 
 
 def cli_mode(args: argparse.Namespace) -> None:
@@ -317,18 +402,34 @@ def cli_mode(args: argparse.Namespace) -> None:
     out = Path(args.out)
     rows = []
     print(f"CLI chain: speed {args.speed} m/s, budget {args.budget}, duration {args.duration} s, "
-          f"workers {args.workers}, seed {args.seed}", flush=True)  # fmt: skip
+          f"workers {args.workers}, seed {args.seed}, resume rounds {args.resume_rounds}, "
+          f"force {args.force}", flush=True)  # fmt: skip
     for case in args.cases:
         row = cli_case(case, out / case, args)
         rows.append(row)
         print(json.dumps(row), flush=True)
-    (out / "summary.json").write_text(json.dumps(rows, indent=2))
+        (out / "summary.json").write_text(json.dumps(rows, indent=2))
+    print(f"\n{'case':28s} {'truth':28s} {'base verdict (budget: reasons)':52s} "
+          f"{'discrepancy verdict':26s} {'named':28s} bands seconds")  # fmt: skip
+    for r in rows:
+        if "error" in r:
+            print(f"{r['case']:28s} ERROR {r['error'][-200:]}")
+            continue
+        base = "; ".join(f"{b['budget']}: {b['verdict']}" + (f" ({','.join(b['reasons'])})"
+                         if b["reasons"] else "") for b in r["base"])  # fmt: skip
+        verdict = r["verdict"] + (f" [forced: {r['forced_verdict']}]" if r["forced"] else "")
+        print(f"{r['case']:28s} {r['truth']:28s} {base:52s} {verdict:26s} {r['named']!s:28s} "
+              f"{r['bands']:5d} {r['wall_s']:7d}")  # fmt: skip
     ok = [r for r in rows if "error" not in r]
-    inside = [r for r in ok if r["kind"] == "in"]
-    outside = [r for r in ok if r["kind"] == "out"]
-    null = [r for r in ok if r["kind"] == "null"]
-    accepted = [r for r in ok if r["accepted"]]
-    print(f"\nin library: right names {sum(r['named'] == r['case'] for r in inside)}/{len(inside)}")
+    trusted = [r for r in ok if r["base"][-1]["verdict"] == "trusted" or r["forced"]]
+    inside = [r for r in trusted if r["kind"] == "in"]
+    outside = [r for r in trusted if r["kind"] == "out"]
+    null = [r for r in trusted if r["kind"] == "null"]
+    accepted = [r for r in trusted if r["accepted"]]
+    print(f"\nbase calibrations trusted: {sum(r['base'][-1]['verdict'] == 'trusted' for r in ok)}"
+          f"/{len(ok)}; the counts below are over the trusted ones"
+          + (" and the forced findings on the others" if args.force else ""))  # fmt: skip
+    print(f"in library: right names {sum(r['named'] == r['case'] for r in inside)}/{len(inside)}")
     print(
         f"out of library: false names {sum(r['named'] is not None for r in outside)}/"
         f"{len(outside)}, flagged {sum(r['bands'] > 0 for r in outside)}/{len(outside)}"
@@ -357,6 +458,15 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=83.33, help="cli mode: speed (m/s)")
     parser.add_argument("--workers", type=int, default=1, help="cli mode: worker processes")
     parser.add_argument("--seed", type=int, default=1, help="cli mode: data seed")
+    parser.add_argument("--resume-rounds", type=int, default=0,
+                        help="cli mode: while the base calibration is not trusted, resume it "
+                             "this many times with the budget its verdict asks for")  # fmt: skip
+    parser.add_argument("--reuse", action="store_true",
+                        help="cli mode: keep a case's data and calibration already in --out "
+                             "(resume it, diagnose again)")  # fmt: skip
+    parser.add_argument("--force", action="store_true",
+                        help="cli mode: diagnose --force on an untrusted calibration "
+                             "(findings apart, verdict stays calibration_not_trusted)")  # fmt: skip
     args = parser.parse_args()
     if args.mode == "fast":
         fast_mode(args.quick, args.parts)
