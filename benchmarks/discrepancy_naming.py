@@ -44,8 +44,30 @@ value sits at the bound of the effect's admissible range, which the naming rule 
     yaw_damper_series_stiffness  20 MN/m (30 at bound)         20 MN/m (30 at bound)
     lateral_bump_stop            gap 5 mm (7 consistent)       gap 7 mm (9 consistent)
     air_spring_reservoir         none (2.5 consistent)         ratio 2.0 (1.5 consistent)
+    (air spring measured with the ratio's old range 0.1–3 and a ladder from 2.5; the
+    ladder now starts at 3.0, interior to the range 0.1–5; not re-run)
 
 (1519 s wall.)
+
+``--quick --parts names`` (fast path, noise 0.02, seed 1, both speeds; session 4, after
+the air-spring ratio's range became 0.1–5): 10/10 named, all accepted, none worse on all
+bins; the air-spring reservoir (ratio 3.0) named at 200 km/h too, where the old range
+refused it as at bound; gap ratio after/before on all bins 0.008–0.10 (median per effect).
+155 s wall: 15.5 s per case (median 14.0, max 29.0), **0.065 cases per second**.
+
+``--quick --parts outside null`` (same session and range): out of library 0/10 named,
+10/10 flagged (all five kinds at both speeds; best candidates yaw-damper compliance or
+bump stop, refused; the air-spring reservoir was never the best candidate); null 0/6
+with a flag or a name. 99 s wall: 16 cases, 6.2 s per case, 0.162 cases per second
+(a consistent null case stops after the check, an out-of-library one after the ranking).
+
+Speed, fast path vs command line (same machine, same session, load 2–7): the fast path
+does 0.065 cases/s on named cases (one case = synthesis + base refit + check + ranking
+of 5 candidates + augmented refit, linearised rig). The command-line chain does one case
+in 226–459 s at 40 evaluations with ``--force`` (0.0022–0.0044 cases/s, calibration
+156–214 s of it) and 2773 s for the air-spring case resumed 40 → 80 → 160 → 320
+evaluations (0.00036 cases/s): 15–30× slower at the benchmark budget, ~180× with the
+resumes.
 
 ``--mode cli`` with REAL reliability verdicts (session 4, 23 Nov 2026, q = 4, ν = 3,
 83.33 m/s, seed 1, noise 0.02 m/s², records 16 s; load average 2–7 from other work).
