@@ -140,6 +140,10 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
                     "warm_start": {"ranking_refit": start.tolist(), "window": bounds.tolist()},
                     "n_evaluations": int(result.n_evaluations),
                     **json_ready(summary),
+                    # the recalibration's own verdict (its budget is often small: say so)
+                    "reliability": None
+                    if result.reliability is None
+                    else json_ready(result.reliability.to_dict()),
                 },
                 indent=2,
             )

@@ -87,6 +87,29 @@ def test_air_spring_stiffness_rises_above_the_corner(base_spec: RigSpec) -> None
     assert np.allclose(assembly.series.damping[pick], c_r)
 
 
+def _gas_column_stiffness(volume_m3: float, n: float, area_m2: float, p_pa: float) -> float:
+    """Stiffness (N/m) of a gas column p V^n = const under a piston, by a central difference."""
+    dx = 1e-6
+    force = [area_m2 * p_pa * (volume_m3 / (volume_m3 - area_m2 * x)) ** n for x in (-dx, dx)]
+    return (force[1] - force[0]) / (2 * dx)
+
+
+@pytest.mark.parametrize("volume_ratio", [1.0, 2.0, 3.6])
+def test_air_spring_ratio_range_covers_real_reservoir_volumes(volume_ratio: float) -> None:
+    """Reservoirs of 1–3.6 bellows volumes (3.6: the best design of Gao et al. 2014)
+    give stiffness ratios well inside the admissible range, not on its bound."""
+    bellows, area, pressure = 0.05, 0.25, 5.0e5  # m³, m², Pa: a high-speed-train air spring
+    for n in (1.0, 1.4):  # one polytropic index with the orifice open and shut
+        k_open = _gas_column_stiffness(bellows * (1 + volume_ratio), n, area, pressure)
+        k_shut = _gas_column_stiffness(bellows, n, area, pressure)
+        ratio = (k_shut - k_open) / k_open
+        assert ratio == pytest.approx(volume_ratio, rel=1e-4)  # the docstring's V_r / V_b
+        (parameter,) = (p for p in EFFECTS["air_spring_reservoir"].parameters
+                        if p.key == "stiffness_ratio")  # fmt: skip
+        margin = 0.05 * (parameter.upper - parameter.lower)  # 5× the naming rule's 1 %
+        assert parameter.lower + margin < ratio < parameter.upper - margin
+
+
 def test_effect_parameters_are_named_validated_and_calibratable(base_spec: RigSpec) -> None:
     spec = with_effect(base_spec, "carbody_bending", {"frequency_hz": 8.0}, calibrate=True)
     assert spec.parameters["carbody_bending_frequency_hz"] == 8.0

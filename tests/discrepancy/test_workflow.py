@@ -75,6 +75,24 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(
         assert before[1] >= np.nanmax(np.abs(report.before.z))  # the flagged peak not clipped
 
 
+def test_an_air_spring_reservoir_of_three_bellows_volumes_is_named_at_200_kmh(
+    base_spec, linear_simulator
+) -> None:
+    """The case the at-bound rule refused while the ratio's range stopped at 3.0 (the fit
+    pinned at 3.0): with the physical range (up to 5) the truth is interior and named."""
+    problem = synthesize_problem(
+        base_spec, ("air_spring_reservoir", {"stiffness_ratio": 3.0}), nu=3, seed=1,
+        noise_m_s2=0.02, speed_m_s=SLOW,
+    )  # fmt: skip
+    report = run_workflow(problem, linear_simulator)
+    document = report.to_dict()
+    assert document["verdict"] == "named" and document["named_effect"] == "air_spring_reservoir"
+    assert document["naming_check"]["at_bound"] == []
+    ratio = report.augmented.parameters()["air_spring_reservoir_stiffness_ratio"]
+    assert ratio == pytest.approx(3.0, rel=0.15)
+    assert document["augmented"]["accepted"]
+
+
 @pytest.mark.parametrize(("speed", "noise"), [(FAST, 0.05), (SLOW, 0.01)])
 def test_the_null_case_names_nothing_and_flags_nothing(
     base_spec, linear_simulator, speed, noise
