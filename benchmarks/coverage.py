@@ -115,6 +115,9 @@ class Options:
     reference_only: bool = False
     zoom: bool = False
     trust_region: bool = False
+    local_search: bool = False
+    surrogate_mean: str = "auto"
+    half_width_sd: float = 8.0
 
 
 def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
@@ -123,7 +126,13 @@ def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
     settings = calibration_settings(config)
     seed = int(np.random.SeedSequence([options.seed, experiment, 7]).generate_state(1)[0] >> 1)
     settings = dataclasses.replace(
-        settings, seed=seed, mcmc_seed=seed + 1, trust_region=options.trust_region
+        settings,
+        seed=seed,
+        mcmc_seed=seed + 1,
+        trust_region=options.trust_region,
+        local_search=options.local_search,
+        surrogate=dataclasses.replace(settings.surrogate, mean=options.surrogate_mean),
+        trust_region_half_width_sd=options.half_width_sd,
     )
     if options.budget is not None:
         settings = dataclasses.replace(
@@ -195,6 +204,19 @@ class FastPathProblem:
         if isinstance(self.error, PairedOutputError):
             return float(paired_log_likelihood(self.measured, h, self.error))
         return float(log_likelihood(self.measured, h, self.error))
+
+    def spectra(self, W: np.ndarray) -> np.ndarray:
+        """(b x ν x C x F) simulated spectra of the rows of W (the local phase's input)."""
+        self.evaluations += len(np.atleast_2d(W))
+        return np.stack([self.simulated(w) for w in np.atleast_2d(W)])
+
+    def log_likelihood_of(self, H: np.ndarray, exact: bool = False) -> np.ndarray:
+        """(b,) log L of (b x ν x C x F) spectra, no simulation."""
+        if isinstance(self.error, PairedOutputError):
+            value = paired_log_likelihood(self.measured, H, self.error, exact=exact)
+        else:
+            value = log_likelihood(self.measured, H, self.error)
+        return np.atleast_1d(np.asarray(value, dtype=np.float64))
 
     def __call__(self, W: np.ndarray) -> np.ndarray:
         self.evaluations += len(W)
@@ -336,6 +358,10 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         "reasons": [] if result.reliability is None else list(result.reliability.codes),
         "evidence": None if result.reliability is None else dict(result.reliability.evidence),
         "search_box": None if result.search_box is None else result.search_box.tolist(),
+        "laplace_sd": None
+        if result.local_search is None
+        else (result.local_search.sd * (bounds[1] - bounds[0])).tolist(),
+        "local_stop": None if result.local_search is None else result.local_search.stop_reason,
         "n_evaluations": int(result.n_evaluations)
         + (0 if zoom_box is None else int(first.n_evaluations)),
         "zoom_box": None if zoom_box is None else zoom_box.tolist(),
@@ -644,6 +670,25 @@ def main(argv: list[str] | None = None) -> int:
         "(CalibrationSettings.trust_region)",
     )
     parser.add_argument(
+        "--local-search",
+        action="store_true",
+        help="calibrate with the local Gauss–Newton phase on the spectra after EGO "
+        "(CalibrationSettings.local_search)",
+    )
+    parser.add_argument(
+        "--surrogate-mean",
+        choices=("auto", "constant", "quadratic", "full_quadratic"),
+        default="auto",
+        help="GP prior mean (SurrogateSettings.mean)",
+    )
+    parser.add_argument(
+        "--half-width-sd",
+        type=float,
+        default=8.0,
+        help="search-box half-width in posterior sd "
+        "(CalibrationSettings.trust_region_half_width_sd)",
+    )
+    parser.add_argument(
         "--aggregate-only", action="store_true", help="figures of the finished experiments only"
     )
     args = parser.parse_args(argv)
@@ -672,6 +717,9 @@ def main(argv: list[str] | None = None) -> int:
         args.reference_only,
         args.zoom,
         args.trust_region,
+        args.local_search,
+        args.surrogate_mean,
+        args.half_width_sd,
     )
     out: Path = args.out
     folder = out / "experiments"
@@ -682,6 +730,9 @@ def main(argv: list[str] | None = None) -> int:
             "reference_only": False,
             "zoom": False,
             "trust_region": False,
+            "local_search": False,
+            "surrogate_mean": "auto",
+            "half_width_sd": 8.0,
             **json.loads(config_path.read_text()),
         }
         if stored != dataclasses.asdict(options):

@@ -199,19 +199,40 @@ class LikelihoodEvaluator:
                 found[row, column] = np.asarray(outcome.value) if outcome.ok else None
         return [[found[row, column] for column in range(len(self.tracks))] for row in range(len(W))]
 
-    def __call__(self, W: np.ndarray) -> np.ndarray:
-        """log L of eq. 4 for each row of W (b,), NaN where an evaluation failed."""
-        values = []
+    def spectra(self, W: np.ndarray) -> np.ndarray:
+        """(b x μ x C x F) simulated spectra of the rows of W, noise floor included; a row
+        with a failed evaluation is all NaN (:class:`.local_search.SpectraEvaluator`)."""
+        rows = []
         for spectra in self.spectra_of(W):
             if any(s is None for s in spectra):
-                values.append(np.nan)
+                rows.append(None)
                 continue
-            simulated = with_noise_floor(
-                np.stack([np.asarray(s) for s in spectra]), self.noise_m_s2, self.sample_rate_hz
+            rows.append(
+                with_noise_floor(
+                    np.stack([np.asarray(s) for s in spectra]), self.noise_m_s2, self.sample_rate_hz
+                )
             )
-            if isinstance(self.error, PairedOutputError):
-                value = paired_log_likelihood(self.measured, simulated, self.error)
-            else:
-                value = log_likelihood(self.measured, simulated, self.error, self.frequencies_hz)
-            values.append(float(value))
-        return np.asarray(values, dtype=np.float64)
+        shape = next((r.shape for r in rows if r is not None), None)
+        if shape is None:
+            c, f = self.measured.shape[1:]
+            shape = (len(self.tracks), c, f)
+        return np.stack([np.full(shape, np.nan) if r is None else r for r in rows])
+
+    def log_likelihood_of(self, H: np.ndarray, exact: bool = False) -> np.ndarray:
+        """(b,) log L of eq. 4 (or the paired model) of (b x μ x C x F) spectra, no
+        simulation; ``exact`` skips the paired model's rounding (for derivatives)."""
+        H = np.asarray(H, dtype=np.float64)
+        if isinstance(self.error, PairedOutputError):
+            value = paired_log_likelihood(self.measured, H, self.error, exact=exact)
+        else:
+            value = log_likelihood(self.measured, H, self.error, self.frequencies_hz)
+        return np.atleast_1d(np.asarray(value, dtype=np.float64))
+
+    def __call__(self, W: np.ndarray) -> np.ndarray:
+        """log L of eq. 4 for each row of W (b,), NaN where an evaluation failed."""
+        H = self.spectra(W)
+        ok = np.all(np.isfinite(H.reshape(len(H), -1)), axis=1)
+        values = np.full(len(H), np.nan)
+        for row in np.flatnonzero(ok):
+            values[row] = float(self.log_likelihood_of(H[row][None])[0])
+        return values

@@ -36,6 +36,7 @@ import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -48,6 +49,7 @@ from susp_bo.calibration.design import (
     space_filling_design,
     to_unit,
 )
+from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator, local_search
 from susp_bo.calibration.posterior import summarize
 from susp_bo.calibration.reliability import (
     assess,
@@ -60,7 +62,7 @@ from susp_bo.calibration.sampling import (
     surrogate_log_likelihood,
 )
 from susp_bo.calibration.settings import CalibrationSettings
-from susp_bo.calibration.surrogate import Surrogate, fit_surrogate
+from susp_bo.calibration.surrogate import Bowl, Surrogate, fit_surrogate
 from susp_bo.calibration.surrogate_check import (
     SurrogateCheck,
     edge_points,
@@ -161,18 +163,28 @@ def _refinement_candidates(
 
 
 def _fit(
-    x: np.ndarray, y: np.ndarray, box: np.ndarray, settings: CalibrationSettings, iteration: int
+    x: np.ndarray,
+    y: np.ndarray,
+    box: np.ndarray,
+    settings: CalibrationSettings,
+    iteration: int,
+    boxed: bool = False,
+    laplace: Laplace | None = None,
 ) -> Surrogate:
     """The surrogate in ``box``'s unit cube, seeded by ``iteration``.
 
     Fitted on every evaluation so far (failures imputed) or, with a trust region, on those
-    in and near the box (:func:`.trust_region.training_mask`).
+    in and near the box (:func:`.trust_region.training_mask`), when ``boxed``. With the
+    local phase's Laplace approximation, that bowl is the GP's fixed prior mean.
     """
     y = _impute(y)
-    if settings.trust_region:
+    if boxed:
         keep = training_mask(x, box, min_points=2 * x.shape[1] + 2)
         x, y = x[keep], y[keep]
-    return fit_surrogate(to_unit(x, box), y, settings.surrogate, _seed(settings.seed, iteration, 1))
+    bowl = None if laplace is None else laplace.bowl(box)
+    return fit_surrogate(
+        to_unit(x, box), y, settings.surrogate, _seed(settings.seed, iteration, 1), bowl
+    )
 
 
 @dataclass(frozen=True)
@@ -194,6 +206,8 @@ def _propose(
     iteration: int,
     ego_exhausted: bool,
     settings: CalibrationSettings,
+    boxed: bool,
+    laplace: Laplace | None = None,
 ) -> _Step:
     """Refits the surrogate and proposes the next batch (None when a stopping rule fires).
 
@@ -201,7 +215,7 @@ def _propose(
     (:func:`.trust_region.next_box`); the returned step carries the box its proposal is in.
     """
     seed = settings.seed
-    surrogate = _fit(x, y, box, settings, iteration)
+    surrogate = _fit(x, y, box, settings, iteration, boxed, laplace)
     if phase == "ego":
         u, criterion = propose_ei_batch(
             surrogate,
@@ -216,7 +230,7 @@ def _propose(
         if not settings.refine:
             return _Step("ego", None, criterion, "ego_converged" if converged else "budget", box)
     candidates, n_post = _refinement_candidates(surrogate, settings, _seed(seed, iteration, 3))
-    if settings.trust_region:
+    if boxed:
         finite = np.isfinite(y)
         best = x[finite][int(np.argmax(y[finite]))]
         moved = next_box(
@@ -225,7 +239,7 @@ def _propose(
         if moved is not None:
             logger.info("search box: %s", np.array2string(moved, precision=4))
             box = moved
-            surrogate = _fit(x, y, box, settings, iteration)
+            surrogate = _fit(x, y, box, settings, iteration, boxed, laplace)
             candidates, n_post = _refinement_candidates(
                 surrogate, settings, _seed(seed, iteration, 3)
             )
@@ -235,15 +249,78 @@ def _propose(
     return _Step("refine", u, criterion, "", box)
 
 
+@dataclass(frozen=True)
+class Laplace:
+    """The local phase's Laplace approximation in physical units: mode (q,), covariance (q x q)."""
+
+    mode: np.ndarray
+    covariance: np.ndarray
+
+    @classmethod
+    def of(cls, local: LocalSearchResult, bounds: np.ndarray) -> Laplace:
+        """From the local phase's unit-cube result and C_w's bounds."""
+        span = bounds[1] - bounds[0]
+        return cls(bounds[0] + local.mode * span, local.covariance * np.outer(span, span))
+
+    def bowl(self, box: np.ndarray) -> Bowl:
+        """The bowl −½ (v − c)ᵀ P (v − c) in ``box``'s unit cube (v)."""
+        width = box[1] - box[0]
+        cov = self.covariance / np.outer(width, width)
+        precision = np.linalg.inv(cov)
+        return Bowl((self.mode - box[0]) / width, 0.5 * (precision + precision.T))
+
+
+def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``box`` widened to hold the best evaluated point (physical units)."""
+    finite = np.isfinite(y)
+    best = x[finite][int(np.argmax(y[finite]))]
+    return np.stack([np.minimum(box[0], best), np.maximum(box[1], best)])
+
+
+def _run_local_phase(
+    evaluate: SpectraEvaluator,
+    bounds: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    main_budget: int,
+    iteration: int,
+    settings: CalibrationSettings,
+    history: list[IterationReport],
+    on_iteration: Callable[[IterationReport], None] | None,
+    bar: Any,
+) -> tuple[np.ndarray, np.ndarray, LocalSearchResult, int]:
+    """The local phase (:mod:`.local_search`) from the best point; its runs join the data."""
+    finite = np.isfinite(y)
+    start = x[finite][int(np.argmax(y[finite]))]
+    cap = int(settings.local_search_fraction * (main_budget - x.shape[0]))
+    data = {"x": x, "y": y, "iteration": iteration}
+
+    def record(w: np.ndarray, values: np.ndarray, gain: float) -> None:
+        data["x"] = np.vstack([data["x"], w])
+        data["y"] = np.concatenate([data["y"], values])
+        bar.update(len(w))
+        data["iteration"] += 1
+        _record(data["iteration"], "local", data["x"], data["y"], gain, history, on_iteration)
+
+    result = local_search(evaluate, bounds, start, cap, on_evaluations=record)
+    return data["x"], data["y"], result, data["iteration"]
+
+
 class BudgetTooSmallError(ValueError):
     """The budget leaves no room for refinement and the check (raised before any evaluation)."""
 
 
 def _propose_check(
-    x: np.ndarray, y: np.ndarray, bounds: np.ndarray, size: int, settings: CalibrationSettings
+    x: np.ndarray,
+    y: np.ndarray,
+    bounds: np.ndarray,
+    size: int,
+    settings: CalibrationSettings,
+    boxed: bool,
+    laplace: Laplace | None = None,
 ) -> tuple[torch.Tensor, np.ndarray, np.ndarray, np.ndarray]:
     """Edge points of the current surrogate posterior, the predictions and noise sd there."""
-    surrogate = _fit(x, y, bounds, settings, _CHECK)
+    surrogate = _fit(x, y, bounds, settings, _CHECK, boxed, laplace)
     candidates, n_post = _refinement_candidates(
         surrogate, settings, _seed(settings.seed, _CHECK, 3)
     )
@@ -344,12 +421,48 @@ def calibrate(
     history: list[IterationReport] = []
     stop_reason = "budget"
     iteration = 0
+    boxed = settings.trust_region
+    local: LocalSearchResult | None = None
+    laplace: Laplace | None = None
+    wants_local = settings.local_search and isinstance(evaluate, SpectraEvaluator)
+    if settings.local_search and not wants_local:
+        logger.warning(
+            "local_search: the evaluator exposes no spectra (spectra/log_likelihood_of); "
+            "running without the local phase"
+        )
     while x.shape[0] < main_budget:
         iteration += 1
         size = min(settings.batch_size, main_budget - x.shape[0])
         with torch_threads(settings.num_threads):
-            step = _propose(x, y, b, box, phase, size, iteration, x.shape[0] >= ego_cap, settings)
+            step = _propose(
+                x,
+                y,
+                b,
+                box,
+                phase,
+                size,
+                iteration,
+                x.shape[0] >= ego_cap,
+                settings,
+                boxed,
+                laplace,
+            )
         phase, box = step.phase, step.box
+        if wants_local and local is None and phase == "refine":
+            x, y, local, iteration = _run_local_phase(
+                evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
+            )
+            box = from_unit(local.box(settings.trust_region_half_width_sd), b)
+            box = _hold_best(box, x, y)
+            boxed = True
+            laplace = Laplace.of(local, b) if settings.laplace_mean else None
+            logger.info(
+                "local phase: %s after %d evaluations; search box %s",
+                local.stop_reason,
+                local.n_evaluations,
+                np.array2string(box, precision=5),
+            )
+            continue
         if step.proposal is None:
             stop_reason = step.stop_reason
             break
@@ -361,7 +474,7 @@ def calibrate(
     check = None
     if n_check > 0:
         with torch_threads(settings.num_threads):
-            u, predicted, sd, noise = _propose_check(x, y, box, n_check, settings)
+            u, predicted, sd, noise = _propose_check(x, y, box, n_check, settings, boxed, laplace)
         w_new = from_unit(u.numpy(), box)
         y_new = _evaluate(evaluate, w_new)
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
@@ -371,7 +484,7 @@ def calibrate(
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
     with torch_threads(settings.num_threads):
-        surrogate = _fit(x, y, box, settings, _FINAL)
+        surrogate = _fit(x, y, box, settings, _FINAL, boxed, laplace)
         draws_u, diag = sample_surrogate_posterior(
             surrogate,
             n_chains=settings.mcmc_chains,
@@ -427,5 +540,6 @@ def calibrate(
         mcmc=diag,
         check=check,
         reliability=reliability,
-        search_box=None if not settings.trust_region else box,
+        search_box=box if boxed else None,
+        local_search=local,
     )

@@ -221,7 +221,7 @@ def profile_model_error(z: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def paired_log_likelihood(
-    measured: np.ndarray, simulated: np.ndarray, error: PairedOutputError
+    measured: np.ndarray, simulated: np.ndarray, error: PairedOutputError, exact: bool = False
 ) -> float | np.ndarray:
     """log L(w) of paired runs (module docstring).
 
@@ -230,6 +230,8 @@ def paired_log_likelihood(
         simulated: (ν x C x F) simulated spectra on the same tracks (noise floor included),
             or (b x ν x C x F) for b parameter vectors.
         error: the paired error model.
+        exact: skip the rounding (for finite differences of a local model, which need
+            more digits than 1e-6 nats; :mod:`.local_search`).
 
     Returns:
         log L as a float, or (b,) for batched ``simulated``; rounded to 1e-6 nats and
@@ -245,7 +247,9 @@ def paired_log_likelihood(
             raise ValueError(f"model_error_sigma: {sigma.size} values for {z.shape[-2]} channels")
         t = np.broadcast_to(sigma**2, z.shape[:-1])
         per_channel = _channel_log_likelihood(z * z, lam, t)
-    value = np.round(np.sum(per_channel, axis=-1), _ROUND_DECIMALS)
+    value = np.sum(per_channel, axis=-1)
+    if not exact:
+        value = np.round(value, _ROUND_DECIMALS)
     return float(value) if np.ndim(value) == 0 else value
 
 

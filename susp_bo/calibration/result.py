@@ -7,12 +7,13 @@ from typing import Any, Literal
 
 import numpy as np
 
+from susp_bo.calibration.local_search import LocalSearchResult
 from susp_bo.calibration.posterior import PosteriorSummary
 from susp_bo.calibration.reliability import Reliability
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
-Phase = Literal["design", "ego", "refine", "check"]
+Phase = Literal["design", "ego", "local", "refine", "check"]
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,11 @@ class IterationReport:
 
     def line(self) -> str:
         """One-line summary."""
-        name = {"ego": "EI/spread", "check": "max |check error|"}.get(self.phase, "post. sd[log L]")
+        name = {
+            "ego": "EI/spread",
+            "check": "max |check error|",
+            "local": "predicted gain (nats)",
+        }.get(self.phase, "post. sd[log L]")
         return (
             f"iter {self.iteration:3d} [{self.phase}] evaluations {self.n_evaluations}"
             f" best log L {self.best_log_likelihood:.6g} {name} {self.criterion:.3g}"
@@ -58,7 +63,9 @@ class CalibrationResult:
         reliability: the verdict on this result (:mod:`.reliability`).
         search_box: (2 x q) the final search box (physical units) the surrogate, the
             check points and the MCMC worked in: C_w itself unless
-            ``settings.trust_region`` (:mod:`.trust_region`).
+            ``settings.trust_region`` or the local phase set a box (:mod:`.trust_region`).
+        local_search: what the local phase found (mode and Laplace covariance in the unit
+            cube of C_w), None when it did not run (:mod:`.local_search`).
     """
 
     names: tuple[str, ...]
@@ -75,6 +82,7 @@ class CalibrationResult:
     check: SurrogateCheck | None = None
     reliability: Reliability | None = None
     search_box: np.ndarray | None = None
+    local_search: LocalSearchResult | None = None
 
     @property
     def samples(self) -> np.ndarray:

@@ -59,6 +59,15 @@ class CalibrationSettings:
             posterior presses against it. Needed when the posterior is orders of magnitude
             narrower than C_w (paired data).
         trust_region_half_width_sd: half-width of a shrunk box coordinate, in posterior sd (> 0).
+        local_search: when EGO ends, climb from the best point with the trust-region
+            Gauss–Newton search on the spectra (:mod:`.local_search`; needs an evaluator
+            that exposes its spectra, as the study's does), then refine, check and sample
+            in the box of the Laplace posterior ± ``trust_region_half_width_sd`` sd.
+        local_search_fraction: share of the evaluations left when EGO ends that the local
+            phase may use, in (0, 1).
+        laplace_mean: after the local phase, the GP's prior mean is the Laplace bowl it
+            found (fixed; only its height is fitted), so the GP models only the departure
+            of log L from it; False keeps ``surrogate.mean``.
         num_threads: torch intra-op threads for the surrogate, acquisition and MCMC work
             (restored afterwards, never around ``evaluate``); None leaves torch's setting.
             The default 1 is fastest for these small matrices, by far on a shared machine.
@@ -88,6 +97,9 @@ class CalibrationSettings:
     allow_small_budget: bool = False
     trust_region: bool = False
     trust_region_half_width_sd: float = 8.0
+    local_search: bool = False
+    local_search_fraction: float = 0.5
+    laplace_mean: bool = True
     num_threads: int | None = 1
 
     def __post_init__(self) -> None:
@@ -124,6 +136,10 @@ class CalibrationSettings:
             )
         if not self.refine_tolerance > 0.0:
             raise ValueError(f"refine_tolerance: {self.refine_tolerance} must be > 0 nats")
+        if not 0.0 < self.local_search_fraction < 1.0:
+            raise ValueError(
+                f"local_search_fraction: {self.local_search_fraction} must be in (0, 1)"
+            )
         if not 0.0 <= self.max_ego_fraction <= 1.0:
             raise ValueError(f"max_ego_fraction: {self.max_ego_fraction} must be in [0, 1]")
         if self.design_method not in ("sobol", "lhs"):

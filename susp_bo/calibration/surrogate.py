@@ -94,6 +94,7 @@ from gpytorch.priors import GammaPrior, LogNormalPrior
 from susp_bo.calibration.surrogate_means import (
     FullQuadraticMean,
     NegativeQuadraticMean,
+    fixed_bowl_mean,
     initial_full_quadratic_mean,
     initial_quadratic_mean,
 )
@@ -347,8 +348,29 @@ def _optimizer_options(mean: str) -> dict[str, Any]:
     return {"options": {"maxiter": _QUADRATIC_MAXITER}} if quadratic else {}
 
 
+@dataclass(frozen=True)
+class Bowl:
+    """A known Gaussian-shaped trend of log L: −½ (u − c)ᵀ P (u − c) + const.
+
+    Used as the GP's fixed prior mean (only the constant is fitted), so that the GP
+    models what is left: e.g. the Laplace approximation of the local phase
+    (:mod:`.local_search`), in the fitting unit cube.
+
+    Args:
+        centre: (q,) c, unit-cube coordinates.
+        precision: (q x q) P, symmetric positive definite, nats per unit² (log L units).
+    """
+
+    centre: np.ndarray
+    precision: np.ndarray
+
+
 def fit_surrogate(
-    x_unit: np.ndarray, y: np.ndarray, settings: SurrogateSettings, seed: int
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    settings: SurrogateSettings,
+    seed: int,
+    bowl: Bowl | None = None,
 ) -> Surrogate:
     """Fits the GP to (unit-cube inputs, log L) and returns the surrogate.
 
@@ -361,10 +383,16 @@ def fit_surrogate(
         y: (n,) finite log-likelihood values (impute failures before).
         settings: surrogate settings.
         seed: seed of the (rare) random restarts of the hyperparameter fit.
+        bowl: a known quadratic trend of log L used as the fixed prior mean (then
+            ``settings.mean`` is not used; needs ``transform="none"``).
 
     Returns:
         The fitted :class:`Surrogate`.
     """
+    if bowl is not None:
+        if settings.transform != "none":
+            raise ValueError("bowl: a fixed quadratic mean needs transform='none'")
+        return _fit_one(x_unit, y, settings, seed, bowl)
     transforms = ("none", "log_deficit") if settings.transform == "auto" else (settings.transform,)
     means = ("constant", "quadratic") if settings.mean == "auto" else (settings.mean,)
     if len(transforms) * len(means) == 1:
@@ -380,7 +408,11 @@ def fit_surrogate(
 
 
 def _fit_one(
-    x_unit: np.ndarray, y: np.ndarray, settings: SurrogateSettings, seed: int
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    settings: SurrogateSettings,
+    seed: int,
+    bowl: Bowl | None = None,
 ) -> Surrogate:
     """Fits the GP to (unit-cube inputs, log L) and returns the surrogate.
 
@@ -421,8 +453,10 @@ def _fit_one(
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         std_z = ((train_z - train_z.mean()) / train_z.std())[:, 0]
-        if settings.mean == "quadratic":
-            mean_module: Mean = initial_quadratic_mean(train_x, std_z)
+        if bowl is not None:
+            mean_module: Mean = fixed_bowl_mean(bowl, float(train_z.std()), std_z)
+        elif settings.mean == "quadratic":
+            mean_module = initial_quadratic_mean(train_x, std_z)
         elif settings.mean == "full_quadratic":
             mean_module = initial_full_quadratic_mean(train_x, std_z)
         else:
@@ -439,7 +473,10 @@ def _fit_one(
         mll = ExactMarginalLogLikelihood(model.likelihood, model)
         with torch.enable_grad(), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            fit_gpytorch_mll(mll, optimizer_kwargs=_optimizer_options(settings.mean))
+            fit_gpytorch_mll(
+                mll,
+                optimizer_kwargs=_optimizer_options("constant" if bowl else settings.mean),
+            )
     for w in caught:
         logger.debug("surrogate fit: %s: %s", w.category.__name__, w.message)
     model.eval()

@@ -9,6 +9,9 @@ differences under CPU load).
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
 import torch
 from gpytorch.constraints import Positive
 from gpytorch.means import Mean
@@ -79,6 +82,26 @@ class FullQuadraticMean(Mean):
         """(... x n x q) -> (... x n)."""
         v = (x - self.centre) @ self.factor
         return self.constant - 0.5 * (v**2).sum(-1)
+
+
+def fixed_bowl_mean(bowl: Any, z_sd: float, std_z: torch.Tensor) -> FullQuadraticMean:
+    """A :class:`FullQuadraticMean` fixed to a known bowl; only the constant is fitted.
+
+    Args:
+        bowl: :class:`~susp_bo.calibration.surrogate.Bowl` (centre, precision in log-L
+            units per unit²).
+        z_sd: sd of the GP's outputs (the ``Standardize`` scale), to express the bowl in
+            standardised units.
+        std_z: (n,) standardised outputs (the constant starts at their maximum).
+    """
+    precision = torch.as_tensor(np.asarray(bowl.precision), dtype=torch.float64) / z_sd
+    precision = 0.5 * (precision + precision.T)
+    factor = torch.linalg.cholesky(precision)
+    centre = torch.as_tensor(np.asarray(bowl.centre), dtype=torch.float64)
+    mean = FullQuadraticMean(centre.numel(), centre, float(std_z.max()), factor)
+    for name in ("centre", "raw_diag", "lower"):
+        getattr(mean, name).requires_grad_(False)
+    return mean
 
 
 def initial_full_quadratic_mean(x: torch.Tensor, z: torch.Tensor) -> FullQuadraticMean:
