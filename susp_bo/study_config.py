@@ -41,6 +41,9 @@ Example (also in notes/study_example.toml)::
     sigma = "estimate"      # or one σ for all channels, or a table {channel = σ}
     # correlation_length_hz = 0.5   # unpaired only: frequency correlation length (Hz)
     sensor_noise_m_s2 = 0.005     # accelerometer noise floor; omit = from the runs' metadata
+
+    [search]
+    local = true            # Gauss–Newton on the spectra after EGO (needed for "paired")
 """
 
 from __future__ import annotations
@@ -245,9 +248,35 @@ class OutputErrorConfig:
             object.__setattr__(self, "sensor_noise_m_s2", float(noise))
 
 
+@dataclass(frozen=True)
+class SearchConfig:
+    """How the loop searches C_w after the design and EGO.
+
+    Attributes:
+        local: the local phase (:mod:`susp_bo.calibration.local_search`): trust-region
+            Gauss–Newton on the spectra from EGO's best point, then refinement, check and
+            MCMC in the box of its Laplace posterior with that bowl as the GP's mean.
+            Needed for paired data, whose posterior is 10⁻⁴–10⁻³ of C_w wide.
+    """
+
+    section: ClassVar[str] = "search"
+    local: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.local, bool):
+            raise ValueError(f"search.local: {self.local!r} is not allowed; expected true or false")
+
+
 _SECTIONS: dict[str, type] = {
     cls.section: cls
-    for cls in (BudgetConfig, SeedsConfig, ExecutorConfig, MCMCConfig, OutputErrorConfig)
+    for cls in (
+        BudgetConfig,
+        SeedsConfig,
+        ExecutorConfig,
+        MCMCConfig,
+        OutputErrorConfig,
+        SearchConfig,
+    )
 }
 
 
@@ -261,7 +290,7 @@ class StudyConfig:
         out: results folder.
         parameters: names of the calibrated subset of the rig's calibration
             set, in calibration order; None = the whole set.
-        budget, seeds, executor, mcmc, output_error: the sections.
+        budget, seeds, executor, mcmc, output_error, search: the sections.
     """
 
     rig: str
@@ -273,6 +302,7 @@ class StudyConfig:
     executor: ExecutorConfig = field(default_factory=ExecutorConfig)
     mcmc: MCMCConfig = field(default_factory=MCMCConfig)
     output_error: OutputErrorConfig = field(default_factory=OutputErrorConfig)
+    search: SearchConfig = field(default_factory=SearchConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.rig, str) or not self.rig:

@@ -14,6 +14,7 @@ from susp_bo.study_config import (
     ExecutorConfig,
     MCMCConfig,
     OutputErrorConfig,
+    SearchConfig,
     SeedsConfig,
     StudyConfig,
     load_study_config,
@@ -58,6 +59,7 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         executor=ExecutorConfig(workers=8),
         mcmc=MCMCConfig(chains=512, draws=2000, warmup=500),
         output_error=OutputErrorConfig(model="unpaired", sigma="estimate", sensor_noise_m_s2=0.005),
+        search=SearchConfig(local=True),
     )
 
 
@@ -163,6 +165,8 @@ BAD_EDITS = [
     ('out = "results/trailer"', "", r"out: missing"),
     ("[budget]", "budget = 3\n[budgets]", r"budgets: unknown key \(did you mean 'budget'\?\)"),
     ('sigma = "estimate"', "sigma = [", r"not valid TOML"),
+    ("local = true", "local = 1", r"search\.local: 1 is not allowed; expected true or false"),
+    ("local = true", "locale = true", r"search\.locale: unknown key \(did you mean 'local'"),
 ]
 
 

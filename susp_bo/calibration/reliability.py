@@ -22,7 +22,8 @@ Rules (each a pure function of numbers, testable alone):
   model gives the log L expected at the true parameters (mean, sd), the best
   observed log L lies far below it.
 - ``at_bound`` (:func:`at_bound`): more than ``mass`` of a parameter's posterior
-  draws sit within ``strip`` (fraction of the admissible width) of one bound —
+  draws sit within ``strip`` (fraction of the admissible width, at most half a
+  posterior sd) of one bound —
   the posterior is cut off by C_w, so the true value may lie outside it or the
   search stopped early. (A flat posterior puts ``strip`` there; a posterior one
   sd wide whose mode sits one sd inside the bound puts about 5 %.)
@@ -289,6 +290,7 @@ def at_bound(
     bounds: np.ndarray,
     strip: float = 0.02,
     mass: float = 0.10,
+    sd_fraction: float = 0.5,
 ) -> Reason | None:
     """``at_bound`` when a marginal piles up against an admissible bound.
 
@@ -296,13 +298,17 @@ def at_bound(
         draws_unit: (n x q) posterior draws in the unit cube.
         names: (q,) parameter names.
         bounds: (2 x q) admissible bounds (physical units, for the message).
-        strip: width of the strip at each bound, as a fraction of the admissible width.
+        strip: width of the strip at each bound, as a fraction of the admissible width;
+            never wider than ``sd_fraction`` posterior sd (a posterior 10⁻⁴ of C_w wide
+            whose mode sits 1 % inside a bound, a hundred sd away, is not piled at it).
         mass: share of the draws in one strip above which the rule fires (5 x a flat
             posterior's ``strip`` at the defaults).
+        sd_fraction: the strip's cap in posterior sd.
     """
     u = np.asarray(draws_unit, dtype=np.float64)
-    lower = np.mean(u < strip, axis=0)
-    upper = np.mean(u > 1.0 - strip, axis=0)
+    width = np.minimum(strip, sd_fraction * u.std(axis=0))
+    lower = np.mean(u < width, axis=0)
+    upper = np.mean(u > 1.0 - width, axis=0)
     pinned = []
     for k, name in enumerate(names):
         for side, share, value in (

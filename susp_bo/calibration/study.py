@@ -284,6 +284,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         mcmc_warmup=config.mcmc.warmup,
         mcmc_samples=config.mcmc.draws,
         allow_small_budget=config.budget.allow_small,
+        local_search=config.search.local,
     )
 
 
@@ -339,6 +340,22 @@ def output_error_payload(study: PreparedStudy) -> dict[str, Any]:
     }
 
 
+def local_search_payload(result: CalibrationResult, bounds: np.ndarray) -> dict[str, Any] | None:
+    """The local phase in ``result.json``: its mode, Laplace sd (physical units), stop."""
+    local = result.local_search
+    if local is None:
+        return None
+    span = bounds[1] - bounds[0]
+    return {
+        "mode": (bounds[0] + local.mode * span).tolist(),
+        "laplace_sd": (local.sd * span).tolist(),
+        "log_likelihood": local.log_likelihood,
+        "n_evaluations": local.n_evaluations,
+        "stop_reason": local.stop_reason,
+        "iterations": local.iterations,
+    }
+
+
 def result_payload(
     study: PreparedStudy,
     result: CalibrationResult,
@@ -365,6 +382,7 @@ def result_payload(
         "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **result.mcmc},
         "surrogate_check": None if result.check is None else result.check.to_dict(result.box),
         "search_box": None if result.search_box is None else result.search_box.tolist(),
+        "local_search": local_search_payload(result, study.bounds),
         "reliability": None if result.reliability is None else result.reliability.to_dict(),
         "reference": None if study.reference is None else study.reference.tolist(),
         "output_error": output_error_payload(study),

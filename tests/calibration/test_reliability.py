@@ -84,6 +84,17 @@ def test_at_bound_only_for_mass_piled_at_a_bound() -> None:
     assert at_bound(draws[:, :2], ["a", "b"], bounds[:, :2]) is None
 
 
+def test_at_bound_scales_with_a_sharp_posterior() -> None:
+    """1e-4 of C_w wide: 1 % inside a bound (100 sd) is not piled; cut at it, it is."""
+    rng = np.random.default_rng(1)
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    near = rng.normal(0.99, 1e-4, 20_000)  # every draw in the 2 % strip, 100 sd inside
+    cut = np.clip(1.0 - np.abs(rng.normal(0.0, 1e-4, 20_000)), 0, 1)  # half-normal at 1
+    assert at_bound(near[:, None], ["a"], bounds[:, :1]) is None
+    reason = at_bound(np.column_stack([near, cut]), ["a", "b"], bounds)
+    assert reason is not None and [p["name"] for p in reason["parameters"]] == ["b"]
+
+
 def test_poor_mixing_thresholds() -> None:
     names = ["a", "b"]
     assert poor_mixing(np.array([1.01, 1.05]), np.array([400.0, 5000.0]), names) is None
