@@ -6,9 +6,15 @@
    a. EGO with qLogEI until the stopping rule — batch EI below ``ei_tolerance`` x
       the spread (sd) of the observed latent log L — or until EGO has used
       ``max_ego_fraction`` of the evaluations left after the design;
+   a'. with ``settings.local_search`` and an evaluator that exposes its spectra
+      (:class:`.local_search.SpectraEvaluator`, as the study's does): when EGO ends,
+      trust-region Gauss–Newton on the spectra from the best point (up to
+      ``local_search_fraction`` of the evaluations left); its runs join the data and
+      its Laplace approximation sets the search box (mode ± ``trust_region_half_width_sd``
+      sd, :mod:`.trust_region`) and the GP's fixed prior mean (``laplace_mean``);
    b. posterior refinement (:func:`.acquisition.select_uncertainty_batch`) until the
       posterior mean of sd[log L̃] falls below ``refine_tolerance`` nats;
-   both within the budget ``max_evaluations``;
+   all within the budget ``max_evaluations``;
 4. MH sampling of the surrogate posterior and summaries (:mod:`.mcmc`, :mod:`.posterior`).
 
 Before the first evaluation the budget is checked against what q needs

@@ -98,7 +98,7 @@ class CalibrationSettings:
     trust_region: bool = False
     trust_region_half_width_sd: float = 8.0
     local_search: bool = False
-    local_search_fraction: float = 0.5
+    local_search_fraction: float = 0.7
     laplace_mean: bool = True
     num_threads: int | None = 1
 

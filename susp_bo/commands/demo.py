@@ -23,7 +23,13 @@ from susp_bo.commands.calibrate import format_summary
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.rig.spec import load_rig_spec
-from susp_bo.study_config import BudgetConfig, MCMCConfig, StudyConfig
+from susp_bo.study_config import (
+    BudgetConfig,
+    MCMCConfig,
+    OutputErrorConfig,
+    SearchConfig,
+    StudyConfig,
+)
 
 DEMO_RIG = "hst_trailer"
 DEMO_TRUTH = {
@@ -49,12 +55,16 @@ def demo_config(out: Path, smoke: bool, seed: int) -> StudyConfig:
                 allow_small=True,  # tiny on purpose: the verdict says budget_too_small
             ),
             mcmc=MCMCConfig(chains=8, draws=300, warmup=200),
+            output_error=OutputErrorConfig(model="paired"),
+            search=SearchConfig(local=True),
         )
     return StudyConfig(
         rig=DEMO_RIG,
         data=out / "data",
         out=out,
         budget=BudgetConfig(max_evaluations=200, initial_design=40, batch_size=4),
+        output_error=OutputErrorConfig(model="paired"),
+        search=SearchConfig(local=True),
     )
 
 

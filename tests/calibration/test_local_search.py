@@ -170,3 +170,56 @@ def test_without_spectra_the_loop_warns_and_skips_the_local_phase(
         )
     assert result.local_search is None
     assert "exposes no spectra" in caplog.text
+
+
+class WavySpectra:
+    """1-D: h_b(w) = sin(f_b w), several local maxima of log L; truth 3.0, noise 0.05."""
+
+    def __init__(self) -> None:
+        self.f = np.linspace(0.5, 2.0, 20)
+        self.sigma = 0.05
+        rng = np.random.default_rng(6)
+        self.y = self.h(np.array([[3.0]]))[0] + self.sigma * rng.normal(size=(1, 1, 20))
+
+    def h(self, W: np.ndarray) -> np.ndarray:
+        return np.sin(np.atleast_2d(W)[:, :1] * self.f[None, :])[:, None, None, :]
+
+    def spectra(self, W: np.ndarray) -> np.ndarray:
+        return self.h(W)
+
+    def log_likelihood_of(self, H: np.ndarray, exact: bool = False) -> np.ndarray:
+        r = (self.y[None] - np.asarray(H)).reshape(len(H), -1) / self.sigma
+        return -0.5 * np.sum(r * r, axis=1)
+
+    def __call__(self, W: np.ndarray) -> np.ndarray:
+        return self.log_likelihood_of(self.spectra(W))
+
+
+def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> None:
+    """The design only sees [7, 10]: the local phase climbs a wrong hill, the interval
+    misses the truth, and the verdict says ``not_converged`` (best log L far below the
+    log L expected at the truth, −n/2 ± √(n/2) for this Gaussian B)."""
+    problem = WavySpectra()
+    bounds = np.array([[0.0], [10.0]])
+    n = problem.f.size
+    result = calibrate(
+        problem,
+        bounds,
+        ["w"],
+        _loop_settings(
+            max_evaluations=40,
+            initial_design_size=6,
+            max_ego_fraction=0.0,
+            check_points=4,
+            allow_small_budget=True,
+        ),
+        progress=False,
+        design=np.linspace(7.0, 10.0, 6)[:, None],
+        expected_at_truth=(-0.5 * n, (n / 2) ** 0.5),
+    )
+    assert result.local_search is not None
+    lo, hi = result.summary.interval95[0]
+    assert not lo <= 3.0 <= hi  # a confident wrong answer...
+    rel = result.reliability
+    assert rel is not None and rel.verdict == "not_trusted"  # ...that says it is not trusted
+    assert "not_converged" in rel.codes
