@@ -185,7 +185,10 @@ def _fit(
     """
     y = _impute(y)
     if boxed:
-        keep = training_mask(x, box, min_points=2 * x.shape[1] + 2)
+        # with the Laplace bowl as the mean, far points (thousands of nats below it) only
+        # inflate the GP's scale: keep the box's neighbourhood, at least q + 2 points
+        q = x.shape[1]
+        keep = training_mask(x, box, min_points=q + 2 if laplace is not None else 2 * q + 2)
         x, y = x[keep], y[keep]
     bowl = None if laplace is None else laplace.bowl(box)
     return fit_surrogate(
