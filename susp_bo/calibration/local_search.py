@@ -305,9 +305,11 @@ def local_search(
         du = (U - u[None])[np.arange(q), np.arange(q)]
         return (H - h[None]) / du[:, None, None, None]
 
-    u = _round((np.asarray(start, dtype=np.float64) - b[0]) / span)
-    # the start point was evaluated already: its spectra are looked up, not counted
-    h = np.asarray(evaluator.spectra((b[0] + u * span)[None]), dtype=np.float64)[0]
+    u = np.clip((np.asarray(start, dtype=np.float64) - b[0]) / span, 0.0, 1.0)
+    # the start point was evaluated already: its spectra are looked up (at exactly the
+    # evaluated w, so that a store finds them), not counted
+    w_start = np.asarray(start, dtype=np.float64)
+    h = np.asarray(evaluator.spectra(w_start[None]), dtype=np.float64)[0]
     if not np.all(np.isfinite(h)):
         return LocalSearchResult(u, math.nan, np.eye(q), 0, "failed", 0)
     value = float(evaluator.log_likelihood_of(h[None])[0])
