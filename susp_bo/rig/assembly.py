@@ -29,6 +29,7 @@ from susp_bo.rig.builder import (
     Body,
     PeriodicInputs,
 )
+from susp_bo.rig.components import component_value
 from susp_bo.rig.contact import WheelRailContact
 from susp_bo.rig.effects import apply_effects
 from susp_bo.rig.elements import Dampers, DeadBands, SeriesDampers, Springs
@@ -225,6 +226,10 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
             (already validated by ``RigSpec.with_parameters``).
     """
     p = dict(spec.parameters if parameters is None else parameters)  # type: ignore[attr-defined]
+
+    def of(name: str, component: str) -> float:  # per-component override, else shared
+        return component_value(p, name, component)
+
     bodies, axles = _bodies(p)
     builder = AssemblyBuilder(bodies, len(INPUTS_PER_AXLE) * len(axles))
     builder.axle_of = {f"wheelset_{a + 1}": a for a in range(len(axles))}
@@ -238,7 +243,8 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
             wheelset = f"wheelset_{a + 1}"
             for side, sign in (("left", 1.0), ("right", -1.0)):
                 at = (float(xa), sign * p["primary_lateral_half_spacing"], p["primary_height"])
-                tag = f"primary_{wheelset}_{side}"
+                box = f"{wheelset}_{side}"
+                tag = f"primary_{box}"
                 for axis, key in (("x", "longitudinal"), ("y", "lateral"), ("z", "vertical")):
                     builder.add(
                         "spring",
@@ -247,7 +253,7 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
                         bogie,
                         at,
                         axis,
-                        stiffness=p[f"primary_{key}_stiffness"],
+                        stiffness=of(f"primary_{key}_stiffness", box),
                     )
                 builder.add(
                     "damper",
@@ -256,15 +262,16 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
                     bogie,
                     at,
                     "z",
-                    damping=p["primary_vertical_damping"],
-                    slope_ratio=p["primary_vertical_damper_slope_ratio"],
-                    knee=p["primary_vertical_damper_knee"],
+                    damping=of("primary_vertical_damping", box),
+                    slope_ratio=of("primary_vertical_damper_slope_ratio", box),
+                    knee=of("primary_vertical_damper_knee", box),
                 )
         # secondary suspension
         h2 = p["secondary_height"]
         for side, sign in (("left", 1.0), ("right", -1.0)):
             at = (xb, sign * p["secondary_lateral_half_spacing"], h2)
-            tag = f"secondary_{bogie}_{side}"
+            bogie_side = f"{bogie}_{side}"
+            tag = f"secondary_{bogie_side}"
             for axis, key in (("x", "longitudinal"), ("y", "lateral"), ("z", "vertical")):
                 builder.add(
                     "spring",
@@ -273,7 +280,7 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
                     "carbody",
                     at,
                     axis,
-                    stiffness=p[f"secondary_{key}_stiffness"],
+                    stiffness=of(f"secondary_{key}_stiffness", bogie_side),
                 )
             at_damper = (xb, sign * p["secondary_vertical_damper_half_spacing"], h2)
             builder.add(
@@ -283,7 +290,7 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
                 "carbody",
                 at_damper,
                 "z",
-                damping=p["secondary_vertical_damping"],
+                damping=of("secondary_vertical_damping", bogie_side),
                 slope_ratio=1.0,
                 knee=np.inf,
             )
@@ -295,10 +302,10 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
                 "carbody",
                 at_yaw,
                 "x",
-                stiffness=p["yaw_damper_series_stiffness"],
-                damping=p["yaw_damper_damping"],
-                slope_ratio=p["yaw_damper_slope_ratio"],
-                knee=p["yaw_damper_knee"],
+                stiffness=of("yaw_damper_series_stiffness", bogie_side),
+                damping=of("yaw_damper_damping", bogie_side),
+                slope_ratio=of("yaw_damper_slope_ratio", bogie_side),
+                knee=of("yaw_damper_knee", bogie_side),
             )
         builder.add(
             "damper",
@@ -307,9 +314,9 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
             "carbody",
             (xb, 0.0, h2),
             "y",
-            damping=p["secondary_lateral_damping"],
-            slope_ratio=p["secondary_lateral_damper_slope_ratio"],
-            knee=p["secondary_lateral_damper_knee"],
+            damping=of("secondary_lateral_damping", bogie),
+            slope_ratio=of("secondary_lateral_damper_slope_ratio", bogie),
+            knee=of("secondary_lateral_damper_knee", bogie),
         )
         builder.add(
             "dead_band",
@@ -318,9 +325,9 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
             "carbody",
             (xb, 0.0, h2),
             "y",
-            stiffness=p["bump_stop_stiffness"],
-            gap=p["bump_stop_gap"],
-            smoothing=p["bump_stop_smoothing"],
+            stiffness=of("bump_stop_stiffness", bogie),
+            gap=of("bump_stop_gap", bogie),
+            smoothing=of("bump_stop_smoothing", bogie),
         )
         roll_row = np.zeros(builder.n)
         roll_row[builder.bodies["carbody"].dofs[2]] += 1.0
@@ -330,7 +337,7 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
             f"anti_roll_bar_{bogie}",
             roll_row,
             np.zeros(builder.n_inputs),
-            stiffness=p["anti_roll_bar_stiffness"],
+            stiffness=of("anti_roll_bar_stiffness", bogie),
         )
     for a in range(len(axles)):  # flange contact: dead band on wheelset-track lateral offset
         wheelset = builder.bodies[f"wheelset_{a + 1}"]

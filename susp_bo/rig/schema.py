@@ -18,7 +18,8 @@ Allowed keys:
   :class:`~susp_bo.rig.spec.SimulationSettings` / :class:`~susp_bo.rig.spectra.SpectrumSettings`;
 - ``[calibration]``: ``parameters``; each ``[[calibration.parameters]]`` entry:
   ``name``, ``lower``, ``upper``, ``reference``, ``unit``, ``description`` and the
-  optional ``acceptable = [lo, hi]`` (maintenance limits);
+  optional ``acceptable = [lo, hi]`` (maintenance limits); a per-component name
+  ``<parameter>@<component>`` may leave ``reference`` out (the shared value);
 - ``[effects.<name>]``: checked by the effect registry when the rig is built
   (the keys depend on the effect).
 """
@@ -114,9 +115,13 @@ def check_rig_keys(data: Mapping[str, Any], source: str) -> None:
     for index, entry in enumerate(entries):
         label = entry.get("name", f"entry {index + 1}")
         check_keys(f"{source}: [[calibration.parameters]] {label}:", entry, CALIBRATION_ENTRY_KEYS)
-        missing = [k for k in ("name", "lower", "upper", "reference") if k not in entry]
+        needed = ("name", "lower", "upper", "reference")
+        if "@" in str(entry.get("name", "")):  # per-component: reference defaults to shared
+            needed = needed[:3]
+        missing = [k for k in needed if k not in entry]
         if missing:
             raise ValueError(
                 f"{source}: [[calibration.parameters]] {label}: missing {', '.join(missing)}; "
-                "each entry needs name, lower, upper and reference"
+                "each entry needs name, lower, upper and reference (a per-component name "
+                "<parameter>@<component> may leave reference out: the shared value)"
             )

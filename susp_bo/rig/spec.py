@@ -8,9 +8,12 @@ A rig file has engineer-readable sections (``[carbody]``, ``[bogie]``,
 citation), ``[[sensors]]``, ``[simulation]``, ``[spectrum]``, ``[effects]``
 (optional physical effects, parsed but interpreted by the effect registry) and
 ``[[calibration.parameters]]`` (the admissible set C_w: name, lower, upper,
-reference, unit, description). The numbers of an effect table ``[effects.<name>]``
-are named parameters too, ``<name>_<key>`` (e.g. ``carbody_bending_frequency_hz``),
-so effect parameters can be calibrated like any other.
+reference, unit, description; a per-component name ``<parameter>@<component>``,
+e.g. ``yaw_damper_damping@bogie_front_left``, calibrates one element and its
+reference defaults to the shared value, see :mod:`susp_bo.rig.components`). The
+numbers of an effect table ``[effects.<name>]`` are named parameters too,
+``<name>_<key>`` (e.g. ``carbody_bending_frequency_hz``), so effect parameters can be
+calibrated like any other.
 
 Every check runs when the spec is built, so bad input fails before any
 simulation: unknown names, non-finite values, non-positive masses/inertias,
@@ -32,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.catalog import rig_path
+from susp_bo.rig.components import is_component_name, split_component_name
 from susp_bo.rig.schema import check_rig_keys
 
 if TYPE_CHECKING:
@@ -66,14 +70,16 @@ def check_parameter_value(name: str, value: float) -> None:
 
     Rules by meaning: finite always; names containing mass, inertia, radius,
     coefficient, spacing or wheelbase must be > 0; stiffness, damping, knee,
-    ratio, gap, smoothing or conicity must be >= 0.
+    ratio, gap, smoothing or conicity must be >= 0. A per-component name
+    ``<parameter>@<component>`` follows the rule of its ``<parameter>``.
     """
     if not math.isfinite(value):
         raise ValueError(f"parameter {name}: got {value}; must be finite")
-    if any(word in name for word in _POSITIVE_WORDS):
+    meaning = name.split("@", 1)[0]
+    if any(word in meaning for word in _POSITIVE_WORDS):
         if value <= 0.0:
             raise ValueError(f"parameter {name}: got {value}; must be > 0")
-    elif any(word in name for word in _NON_NEGATIVE_WORDS) and value < 0.0:
+    elif any(word in meaning for word in _NON_NEGATIVE_WORDS) and value < 0.0:
         raise ValueError(f"parameter {name}: got {value}; must be >= 0")
 
 
@@ -254,7 +260,10 @@ class RigSpec:
         name: rig name.
         topology: body/element layout interpreted by :mod:`susp_bo.rig.assembly`
             (``two_bogie_car``).
-        parameters: every named parameter ``<section>_<key>`` -> value (SI units).
+        parameters: every named parameter ``<section>_<key>`` -> value (SI units),
+            plus any per-component overrides ``<parameter>@<component>``
+            (:mod:`susp_bo.rig.components`); a calibration entry with a per-component
+            name that is not among them is added at the shared value.
         sensors: the accelerometers, in channel order.
         simulation: time-domain defaults.
         spectrum: the spectra settings (band Ω, Welch segments).
@@ -287,6 +296,12 @@ class RigSpec:
                 f"rig {self.name!r}: missing parameters for topology {self.topology!r}: "
                 f"{', '.join(missing)}"
             )
+        for key in [k for k in params if is_component_name(k)]:
+            split_component_name(key, params, self.topology)
+        for entry in self.calibration:  # a per-component entry defaults to the shared value
+            if is_component_name(entry.name) and entry.name not in params:
+                base, _ = split_component_name(entry.name, params, self.topology)
+                params[entry.name] = params[base]
         object.__setattr__(self, "parameters", params)
         names = [c.name for c in self.calibration]
         if len(set(names)) != len(names):
@@ -344,15 +359,23 @@ class RigSpec:
     def with_parameters(self, mapping: Mapping[str, float] | None) -> RigSpec:
         """A copy with some named parameters changed (validated; C_w enforced).
 
+        A per-component name ``<parameter>@<component>`` (e.g.
+        ``yaw_damper_damping@bogie_front_left``, see :mod:`susp_bo.rig.components`)
+        overrides the shared ``<parameter>`` for that component only.
+
         Raises:
-            ValueError: unknown name, NaN/inf, negative stiffness or mass, or a
+            ValueError: unknown name (for a per-component name: the parameter has no
+                per-component form, or the component is unknown — the message lists
+                the valid ones), NaN/inf, negative stiffness or mass, or a
                 calibration parameter outside its admissible interval.
         """
         if not mapping:
             return self
         params = dict(self.parameters)
         for key, value in mapping.items():
-            if key not in params:
+            if is_component_name(key):
+                split_component_name(key, params, self.topology)
+            elif key not in params:
                 raise ValueError(
                     f"rig {self.name!r}: unknown parameter {key!r}; known parameters: "
                     f"{', '.join(sorted(params))}"
@@ -447,12 +470,20 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     simulation = SimulationSettings(**data.get("simulation", {}))
     spectrum = SpectrumSettings(**data.get("spectrum", {}))
     calibration = []
+    topology = str(rig.get("topology", "two_bogie_car"))
     for entry in data.get("calibration", {}).get("parameters", []):
         try:
+            if is_component_name(str(entry["name"])):
+                # per-component entry: its reference defaults to the shared value and,
+                # given or not, is the override's value in the rig
+                base, _ = split_component_name(str(entry["name"]), parameters, topology)
+                entry = {"reference": parameters[base], **entry}
             calibration.append(CalibrationParameter(**entry))
         except ValueError as error:
             raise ValueError(f"{source}: [[calibration.parameters]] {error}") from None
         name = entry["name"]
+        if is_component_name(name):
+            parameters[name] = calibration[-1].reference
         if name in parameters and not math.isclose(
             parameters[name], calibration[-1].reference, rel_tol=1e-12
         ):
@@ -462,7 +493,7 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
             )
     return RigSpec(
         name=str(rig["name"]),
-        topology=str(rig.get("topology", "two_bogie_car")),
+        topology=topology,
         parameters=parameters,
         sensors=tuple(sensors),
         simulation=simulation,
