@@ -160,7 +160,8 @@ def format_summary(payload: dict) -> str:
     Its last line is the reliability sentence (``payload["reliability"]["sentence"]``), or
     says that the result has no verdict (a result.json from an older version).
     """
-    lines = [f"{'parameter':34s} {'marginal MAP [95 % interval]':36s} reference"]
+    width = max([34, *(len(name) for name in payload["parameters"])])  # per-component names
+    lines = [f"{'parameter':{width}s} {'marginal MAP [95 % interval]':36s} reference"]
     reference = payload.get("reference")
     units = payload.get("units") or [""] * len(payload["parameters"])
     for k, name in enumerate(payload["parameters"]):
@@ -171,7 +172,7 @@ def format_summary(payload: dict) -> str:
         if reference is not None:
             (truth,), _ = format_values([reference[k]], units[k], like=estimate)
             ref = f"{truth} {unit} ({'inside' if lo <= reference[k] <= hi else 'OUTSIDE'})"
-        lines.append(f"{name:34s} {f'{value} [{low}, {high}] {unit}':36s} {ref}".rstrip())
+        lines.append(f"{name:{width}s} {f'{value} [{low}, {high}] {unit}':36s} {ref}".rstrip())
     lines.append(
         f"simulator runs: {payload['n_simulations']}, likelihood evaluations: "
         f"{payload['n_evaluations']}, wall time {payload['wall_time_s']:.0f} s"

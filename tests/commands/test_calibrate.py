@@ -112,3 +112,23 @@ def test_summary_reads_in_prefixed_units_and_says_which_reference_is_outside() -
     assert "27.9 [27.2, 28.5] kN·s/m" in lines[1] and "28.0 kN·s/m (inside)" in lines[1]
     assert "4.39 [4.06, 4.72] MN·s/m" in lines[2] and "3.70 MN·s/m (OUTSIDE)" in lines[2]
     assert lines[-1] == "Not trusted: a reason."
+
+
+def test_summary_columns_widen_for_per_component_names() -> None:
+    from susp_bo.commands.calibrate import format_summary
+
+    name = "yaw_damper_damping@bogie_front_right"  # 36 characters, wider than the column
+    payload = {
+        "parameters": ["yaw_damper_damping", name],
+        "units": ["N·s/m", "N·s/m"],
+        "marginal_map": [4.388e6, 2.45e6],
+        "interval95": [[4.058e6, 4.718e6], [2.2e6, 2.7e6]],
+        "n_simulations": 10,
+        "n_evaluations": 10,
+        "wall_time_s": 1.0,
+    }
+    header, first, second = format_summary(payload).splitlines()[:3]
+    column = header.index("marginal MAP")
+    assert column == len(name) + 1
+    assert first[column:].startswith("4.39 [4.06, 4.72] MN·s/m")
+    assert second.startswith(f"{name} 2.45 [2.20, 2.70] MN·s/m")
