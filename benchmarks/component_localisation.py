@@ -64,16 +64,23 @@ from types import ModuleType  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from susp_bo.calibration.welch_noise import (  # noqa: E402
+    band_relative_covariance,
+    noise_residual_moments,
+)
 from susp_bo.rig.components import split_component_name  # noqa: E402
 from susp_bo.rig.linear import LinearisedRig  # noqa: E402
 from susp_bo.rig.localisation import (  # noqa: E402
+    UNKNOWN_TRACK_SCATTER_DB,
     failure_signatures,
     format_separations,
     format_signatures,
     pair_separation,
     single_component_failures,
 )
+from susp_bo.rig.sensitivity import DB_PER_NEPER  # noqa: E402
 from susp_bo.rig.spec import CalibrationParameter, RigSpec, load_rig_spec  # noqa: E402
+from susp_bo.rig.spectra import with_noise_floor  # noqa: E402
 
 Y, S, P = "yaw_damper_damping@", "secondary_vertical_damping@", "primary_vertical_damping@"
 PAIRS = (
@@ -89,13 +96,41 @@ PAIRS = (
 CHANNEL_SETS = ("all", "carbody", "bogie")
 
 
-def tables(spec: RigSpec, fraction: float) -> str:
-    """Part 1: the signature table and the pair table, as text."""
+def paired_scatter_db(spec: RigSpec, noise_m_s2: float) -> np.ndarray:
+    """σ (C x F) dB of a paired residual: sensor noise on the nominal car's spectra.
+
+    The Welch noise model of the ``paired`` error model
+    (:func:`susp_bo.calibration.welch_noise.noise_residual_moments`) for one record of
+    the rig's duration, with white noise of ``noise_m_s2`` m/s² rms.
+    """
+    sim = spec.simulation
+    n_samples = round(sim.duration_s * sim.sample_rate_hz)
+    relative = band_relative_covariance(spec.spectrum, n_samples, sim.sample_rate_hz)
+    nominal = with_noise_floor(
+        LinearisedRig(spec).spectra().log_amplitude, noise_m_s2, sim.sample_rate_hz
+    )
+    _, cov = noise_residual_moments(nominal, 2.0 * noise_m_s2**2 / sim.sample_rate_hz, relative)
+    return DB_PER_NEPER * np.sqrt(np.diagonal(cov, axis1=-2, axis2=-1))
+
+
+def tables(spec: RigSpec, fraction: float, noise_m_s2: float) -> str:
+    """Part 1: the signature table and the pair tables (unknown / measured track)."""
     signatures = failure_signatures(
         LinearisedRig(spec).spectra, single_component_failures(spec, fraction=fraction)
     )
-    rows = [pair_separation(signatures, a, b, c) for a, b in PAIRS for c in CHANNEL_SETS]
-    return format_signatures(signatures) + "\n\n" + format_separations(rows)
+    paired = paired_scatter_db(spec, noise_m_s2)
+    out = []
+    for title, sigma in (
+        (f"track unknown (unpaired): σ = {UNKNOWN_TRACK_SCATTER_DB} dB", UNKNOWN_TRACK_SCATTER_DB),
+        (
+            f"track measured (paired), sensor noise {noise_m_s2} m/s², one record: σ per band "
+            f"{np.min(paired):.3g}–{np.max(paired):.3g} dB (median {np.median(paired):.3g})",
+            paired,
+        ),
+    ):
+        rows = [pair_separation(signatures, a, b, c, sigma) for a, b in PAIRS for c in CHANNEL_SETS]
+        out += [title, format_signatures(signatures, sigma), format_separations(rows), ""]
+    return "\n".join(out)
 
 
 def _coverage_module() -> ModuleType:
@@ -208,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--grid-only", action="store_true", help="part 2 without the loop")
     args = parser.parse_args(argv)
     spec = load_rig_spec(args.rig)
-    print(tables(spec, args.fraction))
+    print(tables(spec, args.fraction, args.noise))
     if args.calibrate:
         names = tuple(n.strip() for n in args.pair.split(","))
         if len(names) != 2:

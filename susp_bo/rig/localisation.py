@@ -6,18 +6,22 @@ fraction of its nominal value, e.g. a yaw damper at 50 % damping. Its *signature
 the change of every channel's log-amplitude spectrum, in dB (``20 log10`` of the
 amplitude ratio), against the nominal car on the same track: a (C x F) array.
 
-Two failures can be told apart when their signatures point in different directions.
-With the size of each failure unknown (what a calibration of both parameters
-estimates), the angle θ between the two signatures — flattened over the chosen
-channels and bands, in dB — is what matters: in a least-squares (Gauss–Newton) fit of
-both parameters to log spectra, their posterior correlation is ``−cos θ`` and each
-posterior sd is ``1/sin θ`` times what it would be with the other one known. Verdicts
-(:data:`NOT_LOCALISABLE_COS`, :data:`LOCALISABLE_COS`): ``|cos θ| >= 0.98`` (θ <= 11.5°,
-sd x 5 or more): not localisable — the data say "one of the two", a wide, correlated
-posterior is the honest answer; ``|cos θ| <= 0.8`` (θ >= 37°, sd x 1.7 or less):
-localisable; in between: weak. Signatures are secants (the failure's full change), not
-derivatives, and say nothing about noise: a signature far below the spectral scatter of
-a record (about 1 dB per band for 30 s records) is invisible whatever its direction.
+Two failures can be told apart when their signatures differ by more than the scatter σ
+of a measured spectrum (dB; one number or one per channel and band). With the size of
+each failure unknown (what a calibration of both estimates), what counts is the part of
+one signature that no scaling of the other mimics: with a, b the signatures divided by
+σ and θ their angle, that part has norm ``z = min(|a|, |b|) sin θ``. In a least-squares
+(Gauss–Newton) fit of both parameters to log spectra with independent scatter σ, their
+posterior correlation is ``−cos θ``, each posterior sd is ``1/sin θ`` times what it is
+with the other known, and z is by how many σ the data prefer the right component to the
+best imitation by the other (log-likelihood ratio ``z²/2``). Verdicts: z >= 5
+(:data:`LOCALISABLE_Z`) localisable; z < 2 (:data:`NOT_LOCALISABLE_Z`) not localisable —
+the data say "one of the two", a wide, correlated posterior is the honest answer; weak
+in between. σ is about 1.5 dB when the runs' tracks are unknown (the replicate scatter
+σ_B of the ``unpaired`` model), far less with the ``paired`` model (track measured:
+sensor noise only; ``benchmarks/component_localisation.py`` computes it per band). z
+assumes independent bands (optimistic at low frequency, where neighbouring bands share
+Welch bins) and secant signatures (the failure's full change, not a derivative).
 """
 
 from __future__ import annotations
@@ -34,11 +38,22 @@ from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import Spectra
 
 FloatArray = NDArray[np.float64]
-NOT_LOCALISABLE_COS = 0.98
-"""|cos θ| at or above which two failures are not localisable (θ <= 11.5°)."""
-LOCALISABLE_COS = 0.8
-"""|cos θ| at or below which two failures are localisable (θ >= 36.9°)."""
+Scatter = float | FloatArray
+"""σ of one value of a measured log spectrum (dB): one number, or one per (C x F)."""
+LOCALISABLE_Z = 5.0
+"""z (σ) at or above which two failures are localisable."""
+NOT_LOCALISABLE_Z = 2.0
+"""z (σ) below which two failures are not localisable."""
+UNKNOWN_TRACK_SCATTER_DB = 1.5
+"""Scatter of one band of a measured log spectrum when the track is unknown (dB)."""
 DEFAULT_TYPES = ("yaw_damper_damping", "secondary_vertical_damping", "primary_vertical_damping")
+
+
+def _sigma(scatter_db: Scatter, shape: tuple[int, ...]) -> FloatArray:
+    sigma = np.broadcast_to(np.asarray(scatter_db, dtype=np.float64), shape)
+    if not np.all(sigma > 0.0):
+        raise ValueError(f"scatter_db: got min {np.min(sigma)}; must be > 0 dB everywhere")
+    return sigma
 
 
 @dataclass(frozen=True)
@@ -80,10 +95,7 @@ def single_component_failures(
     failures = []
     for parameter in parameters:
         if parameter not in forms:
-            raise ValueError(
-                f"parameters: got {parameter!r}; it has no per-component form; parameters "
-                f"with one: {', '.join(forms)}"
-            )
+            raise ValueError(f"parameters: got {parameter!r}; it has no per-component form")
         for component in forms[parameter]:
             name = component_name(parameter, component)
             nominal = spec.parameters.get(name, spec.parameters[parameter])
@@ -119,21 +131,34 @@ class FailureSignatures:
         """Channels whose name starts with ``channels`` (``all``: every one), (C,)."""
         mask = np.array([channels == "all" or c.startswith(channels) for c in self.channels])
         if not mask.any():
-            raise ValueError(
-                f"channels: got {channels!r}; no channel starts with it (channels: "
-                f"{', '.join(self.channels)})"
-            )
+            names = ", ".join(self.channels)
+            raise ValueError(f"channels: got {channels!r}; no channel starts with it ({names})")
         return mask
 
     def rms_db(self) -> FloatArray:
         """RMS change over the band of each failure and channel, (K x C) dB."""
         return np.sqrt(np.mean(self.change_db**2, axis=2))
 
-    def cosine(self, first: str, second: str, channels: str = "all") -> float:
-        """cos θ between two failures' signatures over the chosen channels (all bands)."""
+    def whitened(self, scatter_db: Scatter, channels: str = "all") -> FloatArray:
+        """Signatures / σ (dB / dB: a number or (C x F)) over the chosen channels, (K x C'F).
+
+        Raises:
+            ValueError: σ not > 0 everywhere, or of another shape than (C x F).
+        """
+        sigma = _sigma(scatter_db, self.change_db.shape[1:])
         mask = self.channel_mask(channels)
-        a = self.change_db[self.index(first)][mask].ravel()
-        b = self.change_db[self.index(second)][mask].ravel()
+        return (self.change_db[:, mask] / sigma[mask]).reshape(len(self.failures), -1)
+
+    def detection_z(self, scatter_db: Scatter, channels: str = "all") -> FloatArray:
+        """By how many σ each failure stands out from the nominal car, ``|a/σ|``, (K,)."""
+        return np.linalg.norm(self.whitened(scatter_db, channels), axis=1)
+
+    def cosine(
+        self, first: str, second: str, channels: str = "all", scatter_db: Scatter = 1.0
+    ) -> float:
+        """cos θ between two failures' signatures divided by σ, over the chosen channels."""
+        values = self.whitened(scatter_db, channels)
+        a, b = values[self.index(first)], values[self.index(second)]
         norm = float(np.linalg.norm(a) * np.linalg.norm(b))
         return float(a @ b) / norm if norm > 0.0 else float("nan")
 
@@ -167,13 +192,13 @@ class PairSeparation:
     Attributes:
         first, second: the per-component names.
         channels: ``all`` or a channel-name prefix (``carbody``, ``bogie``, ``bogie_front``).
-        cosine: cos θ of the two signatures (= −posterior correlation of a joint fit).
+        cosine: cos θ of the two signatures divided by σ (= −posterior correlation of a
+            joint fit).
         angle_deg: θ in degrees, in [0, 180].
         sd_inflation: 1/sin θ, the posterior-sd factor against the other one known.
-        distinct_db: rms (over the chosen channels and bands) of the part of the smaller
-            signature that no scaling of the other explains, ``min(|a|, |b|) sin θ / √N``
-            dB: compare with the spectral scatter of a record (~1 dB per band).
-        verdict: ``localisable``, ``weak`` or ``not localisable``.
+        scatter_db: rms of σ over the chosen values (dB; σ itself may vary by value).
+        z: ``min(|a/σ|, |b/σ|) sin θ``, by how many σ the data tell the two apart.
+        verdict: ``localisable`` (z >= 5), ``weak`` or ``not localisable`` (z < 2).
     """
 
     first: str
@@ -182,28 +207,41 @@ class PairSeparation:
     cosine: float
     angle_deg: float
     sd_inflation: float
-    distinct_db: float
+    scatter_db: float
+    z: float
     verdict: str
 
 
-def verdict(cosine: float) -> str:
-    """``localisable`` / ``weak`` / ``not localisable`` from |cos θ| (see the module doc)."""
-    if not np.isfinite(cosine) or abs(cosine) >= NOT_LOCALISABLE_COS:
+def verdict(z: float) -> str:
+    """``localisable`` / ``weak`` / ``not localisable`` from z (see the module doc)."""
+    if not np.isfinite(z) or z < NOT_LOCALISABLE_Z:
         return "not localisable"
-    return "localisable" if abs(cosine) <= LOCALISABLE_COS else "weak"
+    return "localisable" if z >= LOCALISABLE_Z else "weak"
 
 
 def pair_separation(
-    signatures: FailureSignatures, first: str, second: str, channels: str = "all"
+    signatures: FailureSignatures,
+    first: str,
+    second: str,
+    channels: str = "all",
+    scatter_db: Scatter = UNKNOWN_TRACK_SCATTER_DB,
 ) -> PairSeparation:
-    """The angle between two failures' signatures and the verdict."""
-    cosine = signatures.cosine(first, second, channels)
+    """The angle between two failures' signatures, z at ``scatter_db`` and the verdict.
+
+    Args:
+        signatures: the failures' signatures; first, second: two of their names.
+        channels: ``all`` or a channel-name prefix (``carbody``, ``bogie``).
+        scatter_db: σ of one value of a measured spectrum (dB): a number, or (C x F).
+
+    Raises:
+        ValueError: σ not > 0, or no channel starts with ``channels``.
+    """
+    cosine = signatures.cosine(first, second, channels, scatter_db)
     sine = float(np.sqrt(max(0.0, 1.0 - cosine**2))) if np.isfinite(cosine) else 0.0
-    mask = signatures.channel_mask(channels)
-    smaller = min(
-        float(np.sqrt(np.mean(signatures.change_db[signatures.index(name)][mask] ** 2)))
-        for name in (first, second)
-    )
+    detection = signatures.detection_z(scatter_db, channels)
+    z = min(detection[signatures.index(first)], detection[signatures.index(second)]) * sine
+    sigma = _sigma(scatter_db, signatures.change_db.shape[1:])[signatures.channel_mask(channels)]
+    rms_sigma = float(np.sqrt(np.mean(sigma**2)))
     return PairSeparation(
         first,
         second,
@@ -211,8 +249,9 @@ def pair_separation(
         cosine,
         float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))),
         1.0 / sine if sine > 0.0 else float("inf"),
-        smaller * sine,
-        verdict(cosine),
+        rms_sigma,
+        float(z),
+        verdict(float(z)),
     )
 
 
@@ -223,15 +262,19 @@ def _short(channel: str) -> str:
     return "_".join([head, *(w[0] for w in words[1:])])
 
 
-def format_signatures(signatures: FailureSignatures) -> str:
-    """Per failure: rms change (dB) in every channel, as fixed-width text."""
+def format_signatures(
+    signatures: FailureSignatures, scatter_db: Scatter = UNKNOWN_TRACK_SCATTER_DB
+) -> str:
+    """Per failure: rms change (dB) in every channel and detection z at ``scatter_db``."""
     width = max(len(f.label) for f in signatures.failures)
     head = " ".join(f"{_short(c):>7s}" for c in signatures.channels)
-    lines = [f"{'failure':{width}s} {head}"]
-    for failure, rms in zip(signatures.failures, signatures.rms_db()):
-        lines.append(f"{failure.label:{width}s} " + " ".join(f"{v:7.3f}" for v in rms))
+    lines = [f"{'failure':{width}s} {head} {'z':>6s}"]
+    detection = signatures.detection_z(scatter_db)
+    for failure, rms, z in zip(signatures.failures, signatures.rms_db(), detection):
+        values = " ".join(f"{v:7.3f}" for v in rms)
+        lines.append(f"{failure.label:{width}s} {values} {z:6.1f}")
     legend = ", ".join(f"{_short(c)} = {c}" for c in signatures.channels)
-    return "\n".join([*lines, f"(rms dB over the band; {legend})"])
+    return "\n".join([*lines, f"(rms dB over the band; z = |change / σ|; {legend})"])
 
 
 def format_separations(rows: Sequence[PairSeparation]) -> str:
@@ -240,11 +283,12 @@ def format_separations(rows: Sequence[PairSeparation]) -> str:
     second = max(len(r.second) for r in rows)
     lines = [
         f"{'first':{width}s} {'second':{second}s} {'channels':12s} {'cos':>6s} "
-        f"{'angle°':>7s} {'sd x':>6s} {'dist dB':>7s} verdict"
+        f"{'angle°':>7s} {'sd x':>6s} {'σ dB':>5s} {'z':>6s} verdict"
     ]
     for r in rows:
         lines.append(
             f"{r.first:{width}s} {r.second:{second}s} {r.channels:12s} {r.cosine:6.3f} "
-            f"{r.angle_deg:7.2f} {r.sd_inflation:6.2f} {r.distinct_db:7.3f} {r.verdict}"
+            f"{r.angle_deg:7.2f} {min(r.sd_inflation, 999.0):6.2f} {r.scatter_db:5.2f} {r.z:6.1f} "
+            f"{r.verdict}"
         )
     return "\n".join(lines)
