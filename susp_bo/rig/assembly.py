@@ -223,7 +223,9 @@ def build_assembly(spec: object, parameters: dict[str, float] | None = None) -> 
     Args:
         spec: the rig spec.
         parameters: named parameter values to use instead of ``spec.parameters``
-            (already validated by ``RigSpec.with_parameters``).
+            (already validated by ``RigSpec.with_parameters``). A per-component name
+            ``<parameter>@<component>`` (:mod:`susp_bo.rig.components`) sets that one
+            element (group); every other element takes the shared ``<parameter>``.
     """
     p = dict(spec.parameters if parameters is None else parameters)  # type: ignore[attr-defined]
 

@@ -16,10 +16,14 @@ unchanged through TOML (``name = "yaw_damper_damping@bogie_front_left"``; as a t
 it must be quoted), JSON result files, the CLI's ``--parameters a,b``, the evaluation
 store's fingerprint and figure labels/file names.
 
-The value of the override wins over the shared parameter for that component only;
+The value of the override wins over the shared parameter for that component only (so
+an override *pins* its component: changing the shared value no longer moves it);
 without any override every element takes the shared value, so results are bit-for-bit
-those of the type-level model. Which parameters have a per-component form, and their
-components, is :func:`component_parameters` (topology ``two_bogie_car``).
+those of the type-level model. Overrides are given through ``RigSpec.with_parameters``,
+parameter files (``--truth``/``--params``) and ``[[calibration.parameters]]`` entries
+(their reference, default the shared value, becomes the override); the rig file's
+parameter sections hold type-level values only. Which parameters have a per-component
+form, and their components: :func:`component_parameters` (topology ``two_bogie_car``).
 """
 
 from __future__ import annotations
