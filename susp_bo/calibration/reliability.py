@@ -433,9 +433,11 @@ _ADVICE = {
 def sentence(reasons: Sequence[Reason], evidence: Mapping[str, Any]) -> str:
     """One plain sentence: what is wrong first (or why it is trusted), then what to do."""
     if not reasons:
+        gap = float(evidence.get("optimum_gap_nats", math.nan))
+        where = "above" if gap < 0 else "below"
         return (
-            "Trusted: the search converged (best log L within "
-            f"{evidence.get('optimum_gap_nats', math.nan):.2f} nats of the surrogate's maximum), "
+            f"Trusted: the search converged (best log L {abs(gap):.2f} nats {where} the "
+            "surrogate's predicted maximum), "
             f"the held-out check agreed at {evidence.get('check_points', 0)} posterior-edge "
             f"points and the MCMC mixed (R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
             f"ESS >= {evidence.get('ess_min', math.nan):.0f})."
