@@ -9,6 +9,7 @@ from pathlib import Path
 
 from susp_bo.cli import UsageError
 from susp_bo.output_folder import check_output_folder
+from susp_bo.rig.spec import SIMULATION_LIMITS
 
 
 def read_parameter_file(path: str | Path) -> dict[str, float]:
@@ -75,3 +76,16 @@ def read_line_file(path: str | Path | None, spec: object) -> object:
     except DesignError as error:
         raise UsageError(f"--line: {error}") from error
     return design
+
+
+def out_of_range(flag: str, key: str, value: float) -> str:
+    """The refusal of a ``[simulation]`` setting given on the command line.
+
+    E.g. ``--speed: 500 m/s is not allowed; allowed range (0, 200] m/s (the rig's
+    [simulation] speed_m_s)``.
+    """
+    low, high, unit = SIMULATION_LIMITS[key]
+    return (
+        f"{flag}: {value:g} {unit} is not allowed; allowed range ({low:g}, {high:g}] {unit} "
+        f"(the rig's [simulation] {key})"
+    )

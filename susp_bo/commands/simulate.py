@@ -11,6 +11,7 @@ import numpy as np
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
+    out_of_range,
     output_folder,
     read_line_file,
     read_parameter_file,
@@ -36,8 +37,8 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
         if value is not None:
             try:
                 spec = spec.with_simulation(**{key: value})
-            except ValueError as error:
-                raise UsageError(f"{flag}: {value} is not allowed ({error})") from None
+            except ValueError:
+                raise UsageError(out_of_range(flag, key, value)) from None
     try:
         spec.spectrum.check_sample_rate(spec.simulation.sample_rate_hz, spec.simulation.duration_s)
     except ValueError as error:

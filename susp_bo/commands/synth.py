@@ -8,6 +8,7 @@ import sys
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
+    out_of_range,
     output_folder,
     read_line_file,
     read_parameter_file,
@@ -67,8 +68,8 @@ def run_synth(args: argparse.Namespace) -> int:
     if args.speed is not None:
         try:
             spec.with_simulation(speed_m_s=args.speed)
-        except ValueError as error:
-            raise UsageError(f"--speed: {args.speed} is not allowed ({error})") from None
+        except ValueError:
+            raise UsageError(out_of_range("--speed", "speed_m_s", args.speed)) from None
     line_spec = spec.with_simulation(speed_m_s=args.speed) if args.speed is not None else spec
     design = read_line_file(getattr(args, "line", None), line_spec)
     out = output_folder(args.out)

@@ -191,6 +191,16 @@ class SensorSpec:
         object.__setattr__(self, "position_m", position)
 
 
+SIMULATION_LIMITS: dict[str, tuple[float, float, str]] = {
+    "time_step_s": (0.0, 0.01, "s"),
+    "speed_m_s": (0.0, 200.0, "m/s"),
+    "duration_s": (0.0, 1e5, "s"),
+    "sample_rate_hz": (0.0, 1e5, "Hz"),
+    "max_displacement_m": (0.0, 10.0, "m"),
+}
+"""Allowed range (low, high] and unit of each numeric ``[simulation]`` setting."""
+
+
 @dataclass(frozen=True)
 class SimulationSettings:
     """Defaults of a time-domain run.
@@ -216,18 +226,12 @@ class SimulationSettings:
     max_displacement_m: float = 0.2
 
     def __post_init__(self) -> None:
-        limits = {
-            "time_step_s": (0.0, 0.01),
-            "speed_m_s": (0.0, 200.0),
-            "duration_s": (0.0, 1e5),
-            "sample_rate_hz": (0.0, 1e5),
-            "max_displacement_m": (0.0, 10.0),
-        }
-        for key, (low, high) in limits.items():
-            value = _number(f"SimulationSettings.{key}", getattr(self, key))
+        for key, (low, high, unit) in SIMULATION_LIMITS.items():
+            value = _number(f"[simulation] {key}", getattr(self, key))
             if not (math.isfinite(value) and low < value <= high):
                 raise ValueError(
-                    f"SimulationSettings.{key}: got {value}; allowed range ({low}, {high}]"
+                    f"[simulation] {key}: got {value:g}; allowed range "
+                    f"({low:g}, {high:g}] {unit}"
                 )
             object.__setattr__(self, key, value)
         warm = _number("SimulationSettings.warm_up_s", self.warm_up_s)

@@ -133,7 +133,12 @@ def test_speed_above_the_rigs_range_names_the_flag(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str, flag: str, value: str
 ) -> None:
     out = tmp_path / "o"
-    _refused(capsys, [command, "hst_trailer", "--out", str(out), flag, value], flag, "(0.0, 200.0]")
+    _refused(
+        capsys,
+        [command, "hst_trailer", "--out", str(out), flag, value],
+        flag,
+        "allowed range (0, 200] m/s",
+    )
     assert not out.exists()
 
 
