@@ -234,19 +234,19 @@ class SimulationSettings:
                     f"({low:g}, {high:g}] {unit}"
                 )
             object.__setattr__(self, key, value)
-        warm = _number("SimulationSettings.warm_up_s", self.warm_up_s)
+        warm = _number("[simulation] warm_up_s", self.warm_up_s)
         if not (math.isfinite(warm) and warm >= 0.0):
-            raise ValueError(f"SimulationSettings.warm_up_s: got {warm}; must be >= 0")
+            raise ValueError(f"[simulation] warm_up_s: got {warm}; must be >= 0")
         object.__setattr__(self, "warm_up_s", warm)
         if self.track_quality not in TRACK_QUALITIES:
             raise ValueError(
-                f"SimulationSettings.track_quality: got {self.track_quality!r}; allowed "
+                f"[simulation] track_quality: got {self.track_quality!r}; allowed "
                 f"{', '.join(TRACK_QUALITIES)}"
             )
         ratio = 1.0 / (self.time_step_s * self.sample_rate_hz)
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
             raise ValueError(
-                f"SimulationSettings.sample_rate_hz: got {self.sample_rate_hz} Hz; "
+                f"[simulation] sample_rate_hz: got {self.sample_rate_hz} Hz; "
                 f"1/time_step_s = {1.0 / self.time_step_s} Hz must be an integer multiple of it"
             )
 
