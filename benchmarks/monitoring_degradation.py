@@ -54,6 +54,10 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--budget", type=int, default=20)
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--error", choices=("unpaired", "paired"), default="unpaired")
+    parser.add_argument(
+        "--local-search", action="store_true", help="[search] local = true in every campaign"
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     report = run_scenario(
@@ -64,6 +68,8 @@ def main() -> None:
         duration_s=args.duration,
         budget=args.budget,
         workers=args.workers,
+        error_model=args.error,
+        local_search=args.local_search,
     )
     wall = time.perf_counter() - started
     payload = report.pop("monitor")

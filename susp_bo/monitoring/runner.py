@@ -22,7 +22,7 @@ final (and resumable) before the next starts.
 
 Settings common to every campaign come from an optional ``monitor.toml`` in
 the monitoring folder — the keys of a study config (``rig``, ``parameters``,
-``[budget]``, ``[seeds]``, ``[executor]``, ``[mcmc]``, ``[output_error]``)
+``[budget]``, ``[seeds]``, ``[executor]``, ``[mcmc]``, ``[output_error]``, ``[search]``)
 except ``data`` and ``out`` — overridden by the arguments.
 """
 

@@ -228,12 +228,16 @@ def run_scenario(
     mcmc: Mapping[str, int] | None = None,
     vehicles: Sequence[str] = (DEGRADING, HEALTHY),
     progress: bool = True,
+    error_model: str = "unpaired",
+    local_search: bool = False,
 ) -> dict[str, Any]:
     """Write the scenario under ``out/campaigns``, monitor it into ``out/monitor``, score it.
 
     q = 2 (:data:`CALIBRATED`: the degrading damper and the yaw damper), on
     :func:`short_rig`; ``budget`` evaluations per campaign (a third of them the
     design, batches of 4, 4 check points). Resumable: finished campaigns are read back.
+    ``error_model`` (``unpaired`` or ``paired``) and ``local_search`` go to the
+    campaigns' ``[output_error] model`` and ``[search] local``.
 
     Returns:
         ``{"truth", "monitor" (the monitor.json payload), "with_reliability_contract",
@@ -273,6 +277,8 @@ def run_scenario(
                 },
                 "seeds": {"calibration": 0, "mcmc": 1},
                 "mcmc": dict(mcmc or {"chains": 128, "draws": 1000, "warmup": 300}),
+                "output_error": {"model": error_model},
+                "search": {"local": bool(local_search)},
             }
         )
     )

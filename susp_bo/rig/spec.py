@@ -230,8 +230,7 @@ class SimulationSettings:
             value = _number(f"[simulation] {key}", getattr(self, key))
             if not (math.isfinite(value) and low < value <= high):
                 raise ValueError(
-                    f"[simulation] {key}: got {value:g}; allowed range "
-                    f"({low:g}, {high:g}] {unit}"
+                    f"[simulation] {key}: got {value:g}; allowed range ({low:g}, {high:g}] {unit}"
                 )
             object.__setattr__(self, key, value)
         warm = _number("[simulation] warm_up_s", self.warm_up_s)
