@@ -16,7 +16,7 @@ one seeded track, about 20 s).
 Part 2 (``--calibrate``): a q = 2 calibration of two per-component parameters
 (``--pair``, default: left and right yaw damper of the front bogie), the first worn to
 ``--worn`` of nominal, with the real loop (:func:`susp_bo.calibration.loop.calibrate`)
-on the fast path of ``benchmarks/coverage.py`` (linearised rig, ν seeded German-PSD
+on the fast path of ``benchmarks/fast_path.py`` (linearised rig, ν seeded German-PSD
 tracks, white noise ``--noise`` m/s², ``--error`` paired or unpaired, demo settings,
 budget ``--budget``), and the exact-likelihood posterior on a ``--grid`` x ``--grid``
 grid (uniform prior on C_w, zoomed twice onto the 12-nat region; no surrogate) as the
@@ -88,14 +88,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
-import importlib.util  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-from types import ModuleType  # noqa: E402
 
 import numpy as np  # noqa: E402
+from fast_path import FastPathProblem, Options, demo_settings  # noqa: E402
 
+from susp_bo.calibration.loop import calibrate  # noqa: E402
 from susp_bo.calibration.welch_noise import (  # noqa: E402
     band_relative_covariance,
     noise_residual_moments,
@@ -179,17 +177,6 @@ def pybullet_tables(spec: RigSpec, fraction: float, seed: int = 11) -> str:
     return "\n".join([title, format_signatures(signatures), format_separations(rows)])
 
 
-def _coverage_module() -> ModuleType:
-    """benchmarks/coverage.py (its fast-path problem), loaded by path."""
-    path = Path(__file__).with_name("coverage.py")
-    module_spec = importlib.util.spec_from_file_location("susp_bo_sbc_coverage", path)
-    assert module_spec is not None and module_spec.loader is not None
-    module = importlib.util.module_from_spec(module_spec)
-    sys.modules[module_spec.name] = module
-    module_spec.loader.exec_module(module)
-    return module
-
-
 def component_spec(spec: RigSpec, names: tuple[str, str]) -> RigSpec:
     """The rig with C_w = the two per-component parameters (the bounds of their type)."""
     entries = []
@@ -208,14 +195,13 @@ def calibration_study(
     spec: RigSpec, names: tuple[str, str], worn: float, args: argparse.Namespace
 ) -> str:
     """Part 2: the loop's posterior and the exact grid posterior, as text."""
-    coverage = _coverage_module()
     cal = component_spec(spec, names)
     truth = cal.calibration_reference * np.array([worn, 1.0])
-    options = coverage.Options(
+    options = Options(
         nu=args.nu, noise=args.noise, seed=0, error=args.error, budget=args.budget,
         smoke=False, local_search=True,
     )  # fmt: skip
-    problem = coverage.FastPathProblem(cal, dict(zip(names, truth.tolist())), options, seed=7)
+    problem = FastPathProblem(cal, dict(zip(names, truth.tolist())), options, seed=7)
     bounds = cal.calibration_bounds
     lines = [f"truth: {names[0]} = {truth[0]:.4g}, {names[1]} = {truth[1]:.4g} N·s/m"]
     started = time.perf_counter()
@@ -251,9 +237,9 @@ def calibration_study(
     )
     if args.grid_only:
         return "\n".join(lines)
-    settings = coverage.demo_settings(options, 0)
+    settings = demo_settings(options, 0)
     started = time.perf_counter()
-    result = coverage.calibrate(problem, bounds, names, settings, progress=False)
+    result = calibrate(problem, bounds, names, settings, progress=False)
     draws = result.draws.reshape(-1, 2)
     c = np.corrcoef(draws.T)[0, 1]
     interval = np.asarray(result.summary.interval95)

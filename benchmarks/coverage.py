@@ -92,16 +92,10 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+from fast_path import FastPathProblem, Options, demo_settings  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from susp_bo.calibration.evaluation import TrackRun  # noqa: E402
-from susp_bo.calibration.likelihood import (  # noqa: E402
-    OutputError,
-    estimate_output_error,
-    log_likelihood,
-)
 from susp_bo.calibration.loop import (  # noqa: E402
-    CalibrationSettings,
     IterationReport,
     calibrate,
 )
@@ -110,142 +104,8 @@ from susp_bo.calibration.paired_error import (  # noqa: E402
     paired_expected_log_likelihood,
     paired_log_likelihood,
 )
-from susp_bo.calibration.study import calibration_settings  # noqa: E402
-from susp_bo.commands.demo import DEMO_RIG, demo_config  # noqa: E402
-from susp_bo.data.synthetic import track_seed  # noqa: E402
-from susp_bo.discrepancy.problem import LinearSimulator  # noqa: E402
-from susp_bo.rig.linear import LinearisedRig  # noqa: E402
-from susp_bo.rig.simulator import synthetic_track  # noqa: E402
-from susp_bo.rig.spec import RigSpec, load_rig_spec  # noqa: E402
-from susp_bo.rig.spectra import log_amplitude_spectra, with_noise_floor  # noqa: E402
-from susp_bo.rig.track import SpeedProfile  # noqa: E402
-
-
-@dataclasses.dataclass(frozen=True)
-class Options:
-    """What an SBC run is (stored in ``OUT/config.json``; a resume must match)."""
-
-    nu: int
-    noise: float
-    seed: int
-    error: str
-    budget: int | None
-    smoke: bool
-    reference_only: bool = False
-    zoom: bool = False
-    trust_region: bool = False
-    local_search: bool = False
-    surrogate_mean: str = "auto"
-    half_width_sd: float = 8.0
-
-
-def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
-    """The demo's calibration settings, seeded per experiment (and shrunk with --smoke)."""
-    config = demo_config(Path("/nonexistent"), smoke=False, seed=0)
-    settings = calibration_settings(config)
-    seed = int(np.random.SeedSequence([options.seed, experiment, 7]).generate_state(1)[0] >> 1)
-    settings = dataclasses.replace(
-        settings,
-        seed=seed,
-        mcmc_seed=seed + 1,
-        trust_region=options.trust_region,
-        local_search=options.local_search,
-        surrogate=dataclasses.replace(settings.surrogate, mean=options.surrogate_mean),
-        trust_region_half_width_sd=options.half_width_sd,
-    )
-    if options.budget is not None:
-        settings = dataclasses.replace(
-            settings,
-            max_evaluations=options.budget,
-            initial_design_size=min(settings.initial_design_size or 40, options.budget - 2),
-        )
-    if options.smoke:
-        settings = dataclasses.replace(
-            settings,
-            max_evaluations=14,
-            initial_design_size=10,
-            check_points=2,
-            batch_size=2,
-            mcmc_chains=16,
-            mcmc_warmup=100,
-            mcmc_samples=200,
-            allow_small_budget=True,
-        )
-    return settings
-
-
-class FastPathProblem:
-    """Synthetic runs of one truth and ``evaluate(W) -> log L`` on the linearised rig."""
-
-    def __init__(self, spec: RigSpec, truth: dict[str, float], options: Options, seed: int):
-        self.spec = spec
-        self.names = spec.calibration_names
-        self.options = options
-        sim = spec.simulation
-        self.rate = sim.sample_rate_hz
-        true_spec = spec.with_parameters(truth)
-        rig = LinearisedRig(true_spec)
-        profile = SpeedProfile.constant(sim.speed_m_s, sim.warm_up_s + sim.duration_s)
-        measured, tracks, n_samples = [], [], []
-        for index in range(options.nu):
-            geometry = synthetic_track(true_spec, seed=track_seed(seed, index))
-            response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / self.rate)
-            signals = np.array(response.accelerations_m_s2, dtype=np.float64)
-            if options.noise > 0:
-                signals += np.random.default_rng([seed, index, 2]).normal(
-                    0.0, options.noise, signals.shape
-                )
-            spectra = log_amplitude_spectra(signals, self.rate, response.channels, spec.spectrum)
-            measured.append(spectra.log_amplitude)
-            tracks.append(TrackRun(f"run{index:03d}", geometry, profile))
-            n_samples.append(signals.shape[1])
-        self.measured = np.stack(measured)
-        self.tracks = tuple(tracks)
-        self.error: PairedOutputError | OutputError
-        if options.error == "paired":
-            self.error = PairedOutputError(
-                options.noise, self.rate, tuple(n_samples), spec.spectrum
-            )
-        else:
-            self.error = estimate_output_error(self.measured)
-        self.simulator = LinearSimulator()
-        self.evaluations = 0
-
-    def simulated(self, w: np.ndarray) -> np.ndarray:
-        """(ν x C x F) simulated spectra with the noise floor, run i on track i."""
-        parameters = dict(zip(self.names, np.asarray(w, dtype=float).tolist()))
-        spectra = [self.simulator.spectra(self.spec, parameters, t) for t in self.tracks]
-        return with_noise_floor(np.stack(spectra), self.options.noise, self.rate)
-
-    def log_l(self, w: np.ndarray) -> float:
-        """log L at one parameter vector (physical units)."""
-        h = self.simulated(w)
-        if isinstance(self.error, PairedOutputError):
-            return float(paired_log_likelihood(self.measured, h, self.error))
-        return float(log_likelihood(self.measured, h, self.error))
-
-    def spectra(self, W: np.ndarray) -> np.ndarray:
-        """(b x ν x C x F) simulated spectra of the rows of W (the local phase's input)."""
-        self.evaluations += len(np.atleast_2d(W))
-        return np.stack([self.simulated(w) for w in np.atleast_2d(W)])
-
-    def log_likelihood_of(self, H: np.ndarray, exact: bool = False) -> np.ndarray:
-        """(b,) log L of (b x ν x C x F) spectra, no simulation."""
-        if isinstance(self.error, PairedOutputError):
-            value = paired_log_likelihood(self.measured, H, self.error, exact=exact)
-        else:
-            value = log_likelihood(self.measured, H, self.error)
-        return np.atleast_1d(np.asarray(value, dtype=np.float64))
-
-    def __call__(self, W: np.ndarray) -> np.ndarray:
-        self.evaluations += len(W)
-        out = []
-        for w in np.atleast_2d(W):
-            try:
-                out.append(self.log_l(w))
-            except (ValueError, np.linalg.LinAlgError):
-                out.append(math.nan)
-        return np.asarray(out, dtype=np.float64)
+from susp_bo.commands.demo import DEMO_RIG  # noqa: E402
+from susp_bo.rig.spec import load_rig_spec  # noqa: E402
 
 
 def reference_experiment(options: Options, experiment: int) -> dict[str, Any]:
