@@ -48,7 +48,6 @@ Example (also in notes/study_example.toml)::
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -59,6 +58,7 @@ from typing import Any, ClassVar
 import tomli_w
 
 from susp_bo.rig.catalog import available_rigs, rig_path
+from susp_bo.rig.schema import did_you_mean
 
 
 def _integer(name: str, value: object, minimum: int) -> None:
@@ -370,8 +370,7 @@ _RIG_SECTIONS = ("simulation", "spectrum", "calibration", "sensors", "effects")
 def _check_keys(where: str, given: Mapping[str, Any], allowed: Sequence[str]) -> None:
     for key in given:
         if key not in allowed:
-            close = difflib.get_close_matches(key, allowed, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            hint = did_you_mean(key, allowed)
             if not where and key in _RIG_SECTIONS:
                 hint = f" ([{key}] belongs in the rig .toml: copy the rig, edit it, name it in rig)"
             raise ValueError(f"{where}{key}: unknown key{hint}; allowed keys: {', '.join(allowed)}")

@@ -28,8 +28,9 @@ form, and their components: :func:`component_parameters` (topology ``two_bogie_c
 
 from __future__ import annotations
 
-import difflib
 from collections.abc import Iterable, Mapping
+
+from susp_bo.rig.schema import did_you_mean
 
 COMPONENT_SEPARATOR = "@"
 """Separates the type-level parameter from the component: ``<parameter>@<component>``."""
@@ -99,11 +100,6 @@ def component_name(parameter: str, component: str) -> str:
     return name
 
 
-def _hint(value: str, allowed: Iterable[str]) -> str:
-    close = difflib.get_close_matches(value, list(allowed), n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
 def split_component_name(
     name: str,
     known: Iterable[str] | None = None,
@@ -135,7 +131,7 @@ def split_component_name(
     if parameter not in known:
         raise ValueError(
             f"parameter {name!r}: {parameter!r} is not a named parameter of the rig"
-            f"{_hint(parameter, known)}; parameters with a per-component form: "
+            f"{did_you_mean(parameter, known)}; parameters with a per-component form: "
             f"{', '.join(forms)}"
         )
     if parameter not in forms:
@@ -147,7 +143,7 @@ def split_component_name(
     if component not in components:
         raise ValueError(
             f"parameter {name!r}: unknown component {component!r} of {parameter}"
-            f"{_hint(component, components)}; valid components: {', '.join(components)}"
+            f"{did_you_mean(component, components)}; valid components: {', '.join(components)}"
         )
     return parameter, component
 

@@ -45,6 +45,13 @@ CALIBRATION_ENTRY_KEYS = (
 )
 
 
+def did_you_mean(value: str, allowed: Iterable[str]) -> str:
+    """``" (did you mean 'x'?)"`` naming the closest allowed name (difflib, cutoff 0.6),
+    else ``""``."""
+    close = difflib.get_close_matches(value, list(allowed), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 def check_keys(where: str, given: Iterable[str], allowed: Iterable[str]) -> None:
     """Raise ValueError for the first key of ``given`` not in ``allowed``.
 
@@ -59,8 +66,7 @@ def check_keys(where: str, given: Iterable[str], allowed: Iterable[str]) -> None
     allowed = list(allowed)
     for key in given:
         if key not in allowed:
-            close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            hint = did_you_mean(str(key), allowed)
             raise ValueError(
                 f"{where} {key}: unknown key{hint}; allowed keys: {', '.join(allowed)}"
             )
