@@ -352,14 +352,19 @@ def _synth_and_calibrate(case: str, folder: Path, args: argparse.Namespace) -> s
     if done.returncode:
         return "synth: " + done.stderr[-500:]
     study = folder / "study.toml"
-    study.write_text(tomli_w.dumps({
+    document = {
         "rig": str(base_file), "data": str(data), "out": str(folder / "result"),
         "parameters": list(WORN_TRUTH),
-        "budget": {"max_evaluations": args.budget, "initial_design": args.budget // 2,
-                   "batch_size": 4},
+        "budget": {"max_evaluations": args.budget,
+                   "initial_design": args.design or args.budget // 2, "batch_size": 4},
         "executor": {"workers": args.workers},
         "mcmc": {"chains": 64, "draws": 1000, "warmup": 300},
-    }))  # fmt: skip
+    }  # fmt: skip
+    if args.error == "paired":
+        document["output_error"] = {"model": "paired"}
+    if args.local_search:
+        document["search"] = {"local": True}
+    study.write_text(tomli_w.dumps(document))
     done = _cli("calibrate", str(study))
     return "calibrate: " + done.stderr[-500:] if done.returncode else None
 
@@ -476,7 +481,8 @@ def cli_mode(args: argparse.Namespace) -> None:
     rows = []
     print(f"CLI chain: speed {args.speed} m/s, budget {args.budget}, duration {args.duration} s, "
           f"workers {args.workers}, seed {args.seed}, resume rounds {args.resume_rounds}, "
-          f"force {args.force}", flush=True)  # fmt: skip
+          f"force {args.force}, error {args.error}, local search {args.local_search}, "
+          f"design {args.design or args.budget // 2}", flush=True)  # fmt: skip
     for case in args.cases:
         row = cli_case(case, out / case, args)
         rows.append(row)
@@ -537,6 +543,19 @@ def main() -> None:
     parser.add_argument("--reuse", action="store_true",
                         help="cli mode: keep a case's data and calibration already in --out "
                              "(resume it, diagnose again)")  # fmt: skip
+    parser.add_argument("--error", choices=("unpaired", "paired"), default="unpaired",
+                        help="cli mode: the calibration's [output_error] model")  # fmt: skip
+    parser.add_argument(
+        "--local-search",
+        action="store_true",
+        help="cli mode: [search] local = true (the local phase after EGO)",
+    )
+    parser.add_argument(
+        "--design",
+        type=int,
+        default=None,
+        help="cli mode: initial design size (default: half the budget)",
+    )
     parser.add_argument("--force", action="store_true",
                         help="cli mode: diagnose --force on an untrusted calibration "
                              "(findings apart, verdict stays calibration_not_trusted)")  # fmt: skip

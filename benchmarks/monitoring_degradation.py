@@ -58,6 +58,9 @@ def main() -> None:
     parser.add_argument(
         "--local-search", action="store_true", help="[search] local = true in every campaign"
     )
+    parser.add_argument(
+        "--cold-start", action="store_true", help="no warm start across a vehicle's campaigns"
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     report = run_scenario(
@@ -70,6 +73,7 @@ def main() -> None:
         workers=args.workers,
         error_model=args.error,
         local_search=args.local_search,
+        warm_start=not args.cold_start,
     )
     wall = time.perf_counter() - started
     payload = report.pop("monitor")
@@ -89,6 +93,15 @@ def main() -> None:
                     f"alarm at {s['alarm_raised_at']}, delay {s['delay_campaigns']}, "
                     f"false alarms {len(s['false_alarms'])}; P(outside) = [{p}]"
                 )
+    for row in payload["campaigns"]:
+        start = row.get("warm_start") or {}
+        reliability = row.get("reliability") or {}
+        codes = ",".join(r["code"] for r in reliability.get("reasons", [])) or "-"
+        print(
+            f"{row['id']}: {'trusted' if row['trusted'] else 'NOT trusted (' + codes + ')'}, "
+            f"{row['n_evaluations']} evaluations, {row['n_simulations']} simulator runs, "
+            f"{'warm from ' + start['from_campaign'] if start else 'cold'}"
+        )
     print(f"simulator runs {payload['n_simulations']}, wall {wall:.0f} s")
 
 

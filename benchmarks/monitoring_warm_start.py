@@ -48,6 +48,7 @@ points to fit the surrogate's length scales.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -120,6 +121,102 @@ def settings(budget: int, chains: int = 256, draws: int = 1000, batch: int = 4):
     )
 
 
+def paired_likelihood(truth: dict[str, float], seed: int):
+    """The same campaign under the paired model B (each run against its own measured
+    track): a :class:`fast_path.FastPathProblem` on the linearised rig, exposing the
+    spectra the local phase needs; q = 2 (:data:`NAMES`)."""
+    from fast_path import FastPathProblem, Options
+
+    spec = load_rig_spec("hst_trailer")
+    subset = tuple(next(c for c in spec.calibration if c.name == n) for n in NAMES)
+    spec = dataclasses.replace(spec, calibration=subset)
+    options = Options(
+        nu=NU, noise=0.005, seed=0, error="paired", budget=None, smoke=False, local_search=True
+    )
+    return FastPathProblem(spec, truth, options, seed), spec.calibration_bounds
+
+
+def zoomed_mmtv(a: np.ndarray, b: np.ndarray, n_grid: int = 801) -> float:
+    """MMTV on a grid over the two draw sets' joint range (paired posteriors are far
+    narrower than C_w: a grid over C_w would not resolve them)."""
+    out = []
+    for k in range(a.shape[1]):
+        lo = min(a[:, k].min(), b[:, k].min())
+        hi = max(a[:, k].max(), b[:, k].max())
+        pad = 0.05 * (hi - lo)
+        box = np.array([lo - pad, hi + pad])
+        grid = np.linspace(box[0], box[1], n_grid)
+        pa = marginal_density(a[:, k], grid, box)
+        pb = marginal_density(b[:, k], grid, box)
+        out.append(0.5 * np.trapezoid(np.abs(pa - pb), grid))
+    return float(np.mean(out))
+
+
+def paired_main(args: argparse.Namespace) -> None:
+    """Paired B + local phase: evaluations and simulator runs until the loop stops on
+    its own (converged) with a trusted verdict, warm against cold, and MMTV of each
+    posterior against a cold reference at a large budget."""
+    started = time.perf_counter()
+    first, bounds = paired_likelihood(FIRST, seed=11)
+    second, _ = paired_likelihood(SECOND, seed=12)
+
+    def run(problem, budget: int, design_size: int, design=None, seed: int = 0, ego=0.4):
+        chosen = dataclasses.replace(
+            settings(budget, chains=256, draws=1000),
+            seed=seed,
+            mcmc_seed=seed + 1,
+            initial_design_size=design_size,
+            check_points=4,
+            local_search=True,
+            max_ego_fraction=ego,
+        )
+        result = calibrate(problem, bounds, NAMES, chosen, progress=False, design=design)
+        verdict = result.reliability.verdict if result.reliability is not None else "none"
+        reasons = result.reliability.reasons if result.reliability is not None else []
+        codes = ",".join(r["code"] for r in reasons)
+        return result, verdict, codes
+
+    previous, verdict, _ = run(first, args.budget, 16)
+    print(f"first campaign: {previous.n_evaluations} evaluations, {verdict}, median "
+          f"{np.median(previous.samples, 0).tolist()}", flush=True)  # fmt: skip
+    reference, verdict, _ = run(second, 3 * args.budget, 32, seed=100)
+    interval = np.quantile(reference.samples, [0.025, 0.975], 0).T.tolist()
+    print(f"reference (cold, budget {3 * args.budget}, design 32): {reference.n_evaluations} "
+          f"evaluations, {verdict}, 95 %: {interval}", flush=True)  # fmt: skip
+    rows = []
+    for seed in args.seeds:
+        variants = [("cold", n, ego) for n in args.cold_designs for ego in (0.4, 0.0)]
+        for kind, size, ego in [*variants, ("warm", args.design, 0.0)]:
+            design = None
+            if kind == "warm":
+                design = warm_start_design(
+                    previous.samples, bounds, size=size - 1, seed=5 + seed,
+                    widen=args.widen, global_points=args.global_points,
+                )  # fmt: skip
+                design = np.vstack([np.median(previous.samples, 0)[None], design])
+            result, verdict, codes = run(second, args.budget, size, design, seed, ego)
+            row = (f"{kind} design {size} EGO share {ego}", size, seed, result.n_evaluations,
+                   result.stop_reason, verdict, codes,
+                   zoomed_mmtv(result.samples, reference.samples))  # fmt: skip
+            rows.append(row)
+            why = f" ({codes})" if codes else ""
+            print(f"{row[0]} seed {seed}: {row[3]:3d} evaluations ({row[3] * NU} runs), "
+                  f"stop {row[4]}, {verdict}{why}, MMTV {row[7]:.3f}", flush=True)  # fmt: skip
+    good = [r for r in rows if r[5] == "trusted" and r[7] <= TARGET]
+    medians = {}
+    for kind in dict.fromkeys(r[0] for r in rows):
+        mine = [r for r in rows if r[0] == kind]
+        ok = [r for r in good if r[0] == kind]
+        medians[kind] = float(np.median([r[3] for r in mine]))
+        print(f"{kind}: {len(ok)}/{len(mine)} trusted with MMTV <= {TARGET}; evaluations "
+              f"median {medians[kind]:.0f} (range "
+              f"{min(r[3] for r in mine)}-{max(r[3] for r in mine)})")  # fmt: skip
+    warm = medians.pop(next(k for k in medians if k.startswith("warm")))
+    for kind, cold in medians.items():
+        print(f"warm / ({kind}) simulator runs (medians): {warm / cold:.2f} (target <= 0.33)")
+    print(f"wall {time.perf_counter() - started:.0f} s")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer budgets")
@@ -129,7 +226,17 @@ def main() -> None:
     parser.add_argument("--design", type=int, default=10, help="warm design size")
     parser.add_argument("--global-points", type=int, default=3, help="warm points over C_w")
     parser.add_argument("--cache", type=Path, help="folder caching the two reference posteriors")
+    parser.add_argument("--error", choices=("unpaired", "paired"), default="unpaired",
+                        help="paired: B per run against its own track, with the local phase; "
+                             "the loop stops on convergence (--budget is its ceiling)")  # fmt: skip
+    parser.add_argument("--budget", type=int, default=80, help="paired: evaluation ceiling")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="paired: seeds")
+    parser.add_argument("--cold-designs", type=int, nargs="+", default=[10, 16],
+                        help="paired: cold design sizes")  # fmt: skip
     args = parser.parse_args()
+    if args.error == "paired":
+        paired_main(args)
+        return
     cold_budgets = [12, 24, 36] if args.quick else [12, 18, 24, 36, 48, 72]
     warm_budgets = [16, 24] if args.quick else [16, 20, 24, 32]
     cold_budgets = cold_budgets if args.cold is None else args.cold

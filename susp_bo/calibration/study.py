@@ -398,7 +398,13 @@ def result_payload(
 
 
 def run_study(
-    config: StudyConfig, resume: bool = False, progress: bool = True
+    config: StudyConfig,
+    resume: bool = False,
+    progress: bool = True,
+    *,
+    design: np.ndarray | None = None,
+    design_note: dict[str, Any] | None = None,
+    local_after_design: bool = False,
 ) -> tuple[dict[str, Any], CalibrationResult]:
     """Run (or resume) a calibration study and write its results folder.
 
@@ -406,6 +412,14 @@ def run_study(
         config: the study config.
         resume: reuse the evaluation store of an interrupted run in ``config.out``.
         progress: progress bars (susp_bo.progress) and one-line iteration summaries on stderr.
+        design: (n0 x q) initial design in physical units instead of the space-filling one
+            (a warm start, :mod:`susp_bo.monitoring.warm_start`); a resume must pass the
+            same design to replay the store.
+        design_note: where ``design`` came from, written to ``result.json`` as
+            ``warm_start`` (the key is absent after a cold start).
+        local_after_design: with ``[search] local``, go to the local phase right after
+            the design (no global EGO batches: ``max_ego_fraction = 0``) — for a design
+            that already sits at the optimum's basin (a warm start).
 
     Returns:
         The ``result.json`` payload and the calibration result.
@@ -449,14 +463,18 @@ def run_study(
             if progress:
                 print(line, file=sys.stderr)
 
+        settings = calibration_settings(config)
+        if local_after_design and settings.local_search:
+            settings = dataclasses.replace(settings, max_ego_fraction=0.0)
         result = calibrate(
             evaluator,
             study.bounds,
             study.names,
-            calibration_settings(config),
+            settings,
             progress=progress,
             on_iteration=report,
             expected_at_truth=expected_log_likelihood_at_truth(study),
+            design=design,
         )
         n_simulations = store.count()
     if result.check is not None:
@@ -472,6 +490,7 @@ def run_study(
             print(line, file=sys.stderr)
     payload = json_ready(
         result_payload(study, result, n_simulations, time.perf_counter() - started)
+        | ({"warm_start": design_note or {}} if design is not None else {})
     )
     save_samples(out / SAMPLES_NAME, result.samples)  # before result.json: "finished" = both
     write_json(out / RESULT_NAME, payload)

@@ -41,6 +41,12 @@ def add_parser(sub: Any) -> None:
         action="store_true",
         help="run campaigns below the minimum budget for q (their verdicts: not trusted)",
     )
+    monitor.add_argument(
+        "--cold-start",
+        action="store_true",
+        help="start every campaign from the space-filling design (default: a vehicle's next "
+        "campaign starts around its previous trusted posterior)",
+    )
     monitor.set_defaults(handler=run_monitor)
 
 
@@ -66,6 +72,7 @@ def run_monitor(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             threshold=args.threshold,
             allow_small_budget=args.allow_small_budget,
+            warm_start=not args.cold_start,
         )
     except MonitorError as error:
         raise UsageError(str(error)) from None

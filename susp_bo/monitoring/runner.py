@@ -56,6 +56,7 @@ from susp_bo.monitoring.alarms import (
     trust,
 )
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
+from susp_bo.monitoring.warm_start import plan_warm_start
 from susp_bo.rig.spec import load_rig_spec
 from susp_bo.study_config import (
     ExecutorConfig,
@@ -162,6 +163,7 @@ def monitor(
     allow_small_budget: bool = False,
     figures: bool = True,
     progress: bool = True,
+    warm_start: bool = True,
 ) -> dict[str, Any]:
     """Calibrate every campaign in ``folder`` (resumably), then write ``monitor.json`` and figures.
 
@@ -179,6 +181,10 @@ def monitor(
             then not trusted and never raise or clear an alarm.
         figures: write the trend figures.
         progress: progress lines on stderr.
+        warm_start: start each campaign of a vehicle from its previous campaign's posterior
+            when that calibration was trusted (:func:`~susp_bo.monitoring.warm_start.
+            plan_warm_start`: the design moves, the prior stays C_w); False = every
+            campaign from the space-filling design.
 
     Returns:
         The ``monitor.json`` payload.
@@ -208,6 +214,7 @@ def monitor(
         raise MonitorError(f"rig/parameters: {error}") from None
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
+    bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
     for campaign in campaigns:  # every input checked before the first simulation
         config = configs[campaign.campaign_id]
         state = status[campaign.campaign_id]
@@ -215,7 +222,9 @@ def monitor(
             if state == "finished":
                 _check_finished(config, names)
             else:
-                prepare_study(config, resume=state == "interrupted")
+                bounds[campaign.campaign_id] = prepare_study(
+                    config, resume=state == "interrupted"
+                ).bounds
         except StudyError as error:
             raise MonitorError(
                 f"campaign {campaign.campaign_id} ({campaign.folder}): {error}"
@@ -228,13 +237,34 @@ def monitor(
             f"{s} {list(status.values()).count(s)}" for s in ("finished", "interrupted", "new")
         ),
     )
-    for campaign in campaigns:
+    previous: dict[str, Campaign] = {}  # vehicle -> its latest campaign so far
+    for campaign in campaigns:  # sorted by vehicle, then date
         cid = campaign.campaign_id
+        before = previous.get(campaign.vehicle)
+        previous[campaign.vehicle] = campaign
         if status[cid] == "finished":
             continue
-        _say(progress, f"calibrating {cid} ({status[cid]}, {campaign.n_runs} runs)")
+        start = None
+        if warm_start and before is not None:
+            start = plan_warm_start(
+                configs[before.campaign_id].out,
+                before.campaign_id,
+                names,
+                bounds[cid],
+                configs[cid].budget.initial_design,
+                configs[cid].seeds.calibration,
+            )
+        how = f"warm start from {start.source}" if start is not None else "cold start"
+        _say(progress, f"calibrating {cid} ({status[cid]}, {campaign.n_runs} runs, {how})")
         try:
-            run_study(configs[cid], resume=status[cid] == "interrupted", progress=progress)
+            run_study(
+                configs[cid],
+                resume=status[cid] == "interrupted",
+                progress=progress,
+                design=None if start is None else start.design,
+                design_note=None if start is None else start.to_dict(),
+                local_after_design=start is not None,
+            )
         except StudyError as error:
             raise MonitorError(f"campaign {cid}: {error}") from None
     payload = build_report(campaigns, configs, status, spec, names, threshold)
@@ -305,6 +335,7 @@ def build_report(
             "why": why,
             "n_simulations": result.get("n_simulations"),
             "n_evaluations": result.get("n_evaluations"),
+            "warm_start": result.get("warm_start"),
             "n_draws": int(samples.shape[0]),
         }
     states = apply_alarms(records, acceptable, threshold)

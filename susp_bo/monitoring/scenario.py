@@ -230,6 +230,7 @@ def run_scenario(
     progress: bool = True,
     error_model: str = "unpaired",
     local_search: bool = False,
+    warm_start: bool = True,
 ) -> dict[str, Any]:
     """Write the scenario under ``out/campaigns``, monitor it into ``out/monitor``, score it.
 
@@ -237,7 +238,8 @@ def run_scenario(
     :func:`short_rig`; ``budget`` evaluations per campaign (a third of them the
     design, batches of 4, 4 check points). Resumable: finished campaigns are read back.
     ``error_model`` (``unpaired`` or ``paired``) and ``local_search`` go to the
-    campaigns' ``[output_error] model`` and ``[search] local``.
+    campaigns' ``[output_error] model`` and ``[search] local``; ``warm_start`` to
+    :func:`~susp_bo.monitoring.runner.monitor`.
 
     Returns:
         ``{"truth", "monitor" (the monitor.json payload), "with_reliability_contract",
@@ -282,7 +284,9 @@ def run_scenario(
             }
         )
     )
-    payload = monitor(data, root / "monitor", workers=workers, progress=progress)
+    payload = monitor(
+        data, root / "monitor", workers=workers, progress=progress, warm_start=warm_start
+    )
     return {
         "truth": truth,
         "monitor": payload,

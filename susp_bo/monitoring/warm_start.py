@@ -11,13 +11,35 @@ clipped to C_w) and keeps a few points spread over all of C_w, so that a part
 that changed more than expected is still found by EGO. The prior stays uniform
 on C_w: only the design moves, so the posterior is that of a cold start once the
 surrogate is accurate; what is saved is the design spent on empty regions.
+
+:func:`plan_warm_start` is what ``susp-bo monitor`` does for the next campaign of a
+vehicle: it reads the previous campaign's results folder and, only when that
+calibration was *trusted* (an untrusted posterior is no evidence of where the
+parameters are) and calibrated the same parameters, returns a :class:`WarmStart`:
+the previous posterior median first, then :func:`warm_start_design` (5 q points in
+all, the cold design's size at most). With the local phase on (``[search] local``)
+the study goes from that design straight to the local phase
+(``run_study(local_after_design=True)``): the global EGO batches are what a warm
+design makes redundant. The reliability verdict of the new campaign
+is computed exactly as for a cold start, so a part that changed far more than
+expected shows up as ``not_converged`` or ``surrogate_misfit``, never as a
+confident answer near the old value.
 """
 
 from __future__ import annotations
 
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 
 from susp_bo.calibration.design import check_bounds, space_filling_design
+
+RESULT_FILE = "result.json"
+SAMPLES_FILE = "posterior_samples.npy"
 
 
 def warm_start_design(
@@ -60,3 +82,74 @@ def warm_start_design(
         return local
     spread = space_filling_design(global_points, b, seed + 1)
     return np.vstack([local, spread])
+
+
+@dataclass(frozen=True)
+class WarmStart:
+    """The initial design of a campaign started from the previous one.
+
+    Attributes:
+        source: campaign id (``<vehicle>/<date>``) whose posterior centres the design.
+        design: (n0 x q) design in physical units: the previous median, the local points,
+            then the global ones.
+        global_points: how many of the last rows span all of C_w.
+    """
+
+    source: str
+    design: np.ndarray
+    global_points: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``warm_start`` block of ``result.json`` and ``monitor.json``."""
+        return {
+            "from_campaign": self.source,
+            "design_points": int(self.design.shape[0]),
+            "global_points": int(self.global_points),
+            "rule": "previous posterior median + space-filling points in median ± 3 × its "
+            "95 % half-width (at least 10 % of C_w) + points over all of C_w; prior unchanged; "
+            "with [search] local the local phase follows the design (no global EGO batches)",
+        }
+
+
+def plan_warm_start(
+    previous: Path,
+    source: str,
+    names: Sequence[str],
+    bounds: np.ndarray,
+    cold_design_size: int,
+    seed: int,
+) -> WarmStart | None:
+    """The warm start from a previous campaign's results folder, or None (cold start).
+
+    Args:
+        previous: results folder of the previous campaign (``result.json`` and
+            ``posterior_samples.npy``).
+        source: its campaign id (recorded in the results).
+        names: (q,) parameters of the new campaign; the previous one must have the same.
+        bounds: (2 x q) admissible set C_w.
+        cold_design_size: the cold start's design size (the warm design is not larger).
+        seed: design seed.
+
+    Returns:
+        None when the previous calibration is missing, not trusted, of other parameters
+        or gives too small a design; else the :class:`WarmStart`.
+    """
+    result_file, samples_file = previous / RESULT_FILE, previous / SAMPLES_FILE
+    if not (result_file.is_file() and samples_file.is_file()):
+        return None
+    payload = json.loads(result_file.read_text())
+    reliability = payload.get("reliability")
+    if not isinstance(reliability, dict) or reliability.get("verdict") != "trusted":
+        return None
+    if list(payload.get("parameters", [])) != list(names):
+        return None
+    draws = np.load(samples_file)
+    b = check_bounds(bounds)
+    q = b.shape[1]
+    size = min(5 * q, int(cold_design_size))
+    global_points = min(3, size - 3)
+    if global_points < 0 or draws.ndim != 2 or draws.shape[1] != q:
+        return None
+    centre = np.clip(np.median(draws, axis=0), b[0], b[1])
+    rest = warm_start_design(draws, b, size - 1, seed, global_points=global_points)
+    return WarmStart(source, np.vstack([centre[None], rest]), global_points)

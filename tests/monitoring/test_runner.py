@@ -218,3 +218,40 @@ def test_bad_input_exits_2_with_a_message_before_any_work(
     assert main(["monitor", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
     assert "holds no campaign" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_the_next_campaign_starts_from_the_previous_trusted_posterior(
+    monitored: dict[str, Any], tmp_path: Path
+) -> None:
+    """A trusted campaign B: C's design starts at B's posterior median (warm start), and
+    ``--cold-start`` / ``warm_start=False`` does not; an untrusted B gives a cold start."""
+    out = tmp_path / "out"
+    shutil.copytree(monitored["out"], out)
+    shutil.rmtree(out / C)
+    path = out / B / "result.json"
+    payload = json.loads(path.read_text())
+    payload["reliability"] = {"verdict": "trusted", "reasons": [], "sentence": "set by the test"}
+    path.write_text(json.dumps(payload))
+    median = np.median(np.load(out / B / "posterior_samples.npy"), axis=0)
+    report = susp_bo.monitor(monitored["folder"], out, progress=False, figures=False)
+    row = next(r for r in report["campaigns"] if r["id"] == C)
+    assert row["warm_start"]["from_campaign"] == B
+    assert json.loads((out / C / "result.json").read_text())["warm_start"] == row["warm_start"]
+    db = sqlite3.connect(out / C / "evaluations.sqlite")
+    rows = [json.loads(r[0]) for r in db.execute("SELECT parameters_json FROM evaluations")]
+    db.close()
+    evaluated = np.array(rows)  # w in calibration order
+    assert np.min(np.max(np.abs(evaluated / median - 1.0), axis=1)) < 1e-12  # B's median ran
+    # B's own row: it was a cold start (A had no trusted verdict when B ran)
+    assert next(r for r in report["campaigns"] if r["id"] == B)["warm_start"] is None
+    # cold on request, and after an untrusted campaign
+    for cold_out, trusted in ((tmp_path / "cold", True), (tmp_path / "untrusted", False)):
+        shutil.copytree(out, cold_out)
+        shutil.rmtree(cold_out / C)
+        if not trusted:
+            payload["reliability"] = {"verdict": "not_trusted", "reasons": [], "sentence": "x"}
+            (cold_out / B / "result.json").write_text(json.dumps(payload))
+        cold = susp_bo.monitor(
+            monitored["folder"], cold_out, progress=False, figures=False, warm_start=not trusted
+        )
+        assert next(r for r in cold["campaigns"] if r["id"] == C)["warm_start"] is None

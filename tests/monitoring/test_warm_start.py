@@ -1,14 +1,17 @@
 """Warm-start design: local points around the previous posterior, global points over C_w;
-``calibrate(design=...)`` evaluates it first."""
+``calibrate(design=...)`` evaluates it first; the plan only follows a trusted calibration."""
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from susp_bo.calibration.loop import CalibrationSettings, calibrate
 from susp_bo.calibration.test_functions import TARGETS
-from susp_bo.monitoring.warm_start import warm_start_design
+from susp_bo.monitoring.warm_start import plan_warm_start, warm_start_design
 
 BOUNDS = np.array([[15.0e3, 0.5e6], [80.0e3, 8.0e6]])
 
@@ -62,3 +65,47 @@ def test_calibrate_evaluates_a_given_design_first() -> None:
     assert result.n_evaluations == 10
     with pytest.raises(ValueError, match="design: points outside"):
         calibrate(target, target.bounds, target.names, settings, False, design=design * 100)
+
+
+def _finished(folder: Path, verdict: str, names: list[str], draws: np.ndarray) -> Path:
+    """A results folder as run_study writes it (result.json and posterior_samples.npy)."""
+    folder.mkdir(parents=True)
+    (folder / "result.json").write_text(
+        json.dumps({"parameters": names, "reliability": {"verdict": verdict, "reasons": []}})
+    )
+    np.save(folder / "posterior_samples.npy", draws)
+    return folder
+
+
+NAMES = ["secondary_vertical_damping", "yaw_damper_damping"]
+
+
+def test_the_plan_starts_at_the_previous_median_and_only_from_a_trusted_calibration(
+    tmp_path: Path,
+) -> None:
+    rng = np.random.default_rng(3)
+    draws = np.column_stack([rng.normal(30e3, 300.0, 4000), rng.normal(3.0e6, 5e4, 4000)])
+    bounds = np.array([[10e3, 1.0e6], [80e3, 9.0e6]])
+    trusted = _finished(tmp_path / "a", "trusted", NAMES, draws)
+    plan = plan_warm_start(trusted, "T/2026-01-01", NAMES, bounds, cold_design_size=26, seed=4)
+    assert plan is not None and plan.source == "T/2026-01-01"
+    assert plan.design.shape == (10, 2) and plan.global_points == 3  # 5 q, not the cold 26
+    np.testing.assert_allclose(plan.design[0], np.median(draws, axis=0))
+    local = plan.design[1:-3]
+    half = np.maximum(3 * np.diff(np.quantile(draws, [0.025, 0.975], 0), axis=0)[0] / 2,
+                      0.05 * (bounds[1] - bounds[0]))  # fmt: skip
+    assert np.all(np.abs(local - np.median(draws, 0)) <= half + 1e-9)
+    assert plan.to_dict()["from_campaign"] == "T/2026-01-01"
+    # the design never exceeds the cold design's size
+    small = plan_warm_start(trusted, "x", NAMES, bounds, cold_design_size=6, seed=4)
+    assert small is not None and small.design.shape == (6, 2) and small.global_points == 3
+    # no warm start: not trusted, no verdict, other parameters, unfinished, too small a design
+    assert plan_warm_start(_finished(tmp_path / "b", "not_trusted", NAMES, draws), "x", NAMES,
+                           bounds, 26, 4) is None  # fmt: skip
+    assert plan_warm_start(_finished(tmp_path / "c", "trusted", NAMES[::-1], draws), "x", NAMES,
+                           bounds, 26, 4) is None  # fmt: skip
+    assert plan_warm_start(tmp_path / "missing", "x", NAMES, bounds, 26, 4) is None
+    assert plan_warm_start(trusted, "x", NAMES, bounds, cold_design_size=2, seed=4) is None
+    unverdicted = _finished(tmp_path / "d", "trusted", NAMES, draws)
+    (unverdicted / "result.json").write_text(json.dumps({"parameters": NAMES}))
+    assert plan_warm_start(unverdicted, "x", NAMES, bounds, 26, 4) is None
