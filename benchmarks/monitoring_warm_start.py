@@ -43,6 +43,31 @@ Cold reaches MMTV <= 0.05 at 48 evaluations (144 simulator runs), the better war
 NOT met: warm at 16 evaluations gives MMTV 0.071. The smaller warm design (6 points, box
 ±2 half-widths) was worse than cold at 8 evaluations and slower to converge: too few
 points to fit the surrogate's length scales.
+
+**Paired model B + local phase** (``--error paired``; what ``susp-bo monitor`` does for a
+vehicle's next campaign: the previous median + a 10-point design around it, then the local
+phase at once). The loop stops on its own when converged, so each run reports the
+evaluations it used (``--budget`` is only the ceiling), its verdict and MMTV against a cold
+reference (budget 240, design 32; MMTV on a grid over the draws' range, the posteriors
+being ~1e-4 of C_w wide). Measured 2026-11-25 (``python benchmarks/monitoring_warm_start.py
+--error paired --budget 80 --seeds 0 1 2 --cold-designs 10 16``, 279 s, beside two other
+jobs on 2 cores)::
+
+    first campaign (36 kN·s/m): 52 evaluations, trusted; reference 33.002
+    [32.996, 33.008] kN·s/m, 4.91 [4.89, 4.94] MN·s/m (truth 33, 4.9), 129 evaluations
+    variant (seeds 0 / 1 / 2)          evaluations      verdict    MMTV vs reference
+    cold, design 10, EGO (default)     54 / 63 / 50     3 trusted  .011 .011 .011
+    cold, design 10, no EGO            33 / 36 / 58     3 trusted  .011 .010 .011
+    cold, design 16, EGO               61 / 57 / 61     3 trusted  .011 .013 .011
+    cold, design 16, no EGO            39 / 42 / 64     3 trusted  .011 .010 .011
+    warm (monitor's), design 10        23 / 22 / 22     3 trusted  .011 .012 .012
+
+Warm / cold simulator runs (medians): 0.41 against the default cold start (design 10 +
+EGO), 0.36 against design 16 + EGO, 0.61 / 0.52 against cold starts that also skip EGO.
+**The target <= 1/3 is NOT met**: a warm run is 10 design points + 3–5 local steps + 4
+refinement + 4 held-out check points, and the check points (needed for a trusted verdict)
+and the design are a fixed cost no warm start removes. All 15 runs were trusted with MMTV
+<= 0.013 against the reference: the warm start does not change the answer.
 """
 
 from __future__ import annotations

@@ -133,7 +133,8 @@ from susp_bo.calibration.test_functions import (
     marginal_total_variation,
 )
 
-Runner = Callable[[Target, int, int], tuple[np.ndarray, int]]
+Runner = Callable[[Target, int, int], tuple[np.ndarray, int, str | None]]
+"""(target, budget, seed) -> (draws, evaluations used, reliability verdict or None)."""
 ROBUSTNESS_TARGETS = ("curved_chain_5d", "student_t_6d", "trimodal_5d", "noisy_gaussian_7d")
 """The targets of issue 10, part 3 (MMTV <= 0.05 at 50 (q + 2), never worse than PyVBMC)."""
 
@@ -141,15 +142,20 @@ ROBUSTNESS_TARGETS = ("curved_chain_5d", "student_t_6d", "trimodal_5d", "noisy_g
 def run_susp_bo(settings: CalibrationSettings) -> Runner:
     """Runner for this tool with the given settings (budget and seed filled in)."""
 
-    def run(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int]:
+    def run(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int, str | None]:
         s = replace(settings, max_evaluations=budget, seed=seed)
         result = calibrate(target, target.bounds, target.names, s, progress=False)
-        return result.samples, result.n_evaluations
+        reliability = result.reliability
+        verdict = None
+        if reliability is not None:
+            codes = ",".join(r["code"] for r in reliability.reasons)
+            verdict = reliability.verdict + (f" ({codes})" if codes else "")
+        return result.samples, result.n_evaluations, verdict
 
     return run
 
 
-def run_pyvbmc(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int]:
+def run_pyvbmc(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int, None]:
     """PyVBMC on the unit-cube log density with the same budget; returns draws, evaluations.
 
     On a :class:`NoisyTarget` PyVBMC is told the noise sd (``specify_target_noise``,
@@ -177,10 +183,10 @@ def run_pyvbmc(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int]
         vbmc = VBMC(log_density, x0, lb, ub, plb, pub, options=options)
         vp, results = vbmc.optimize()
         draws, _ = vp.sample(100_000)
-    return from_unit(draws, target.bounds), int(results["func_count"])
+    return from_unit(draws, target.bounds), int(results["func_count"]), None
 
 
-def run_bolfi(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int]:
+def run_bolfi(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int, None]:
     """ELFI's BOLFI (Gutmann & Corander 2016) with the same budget; returns draws, evaluations.
 
     Settings, all ELFI defaults unless said otherwise:
@@ -266,7 +272,7 @@ def run_bolfi(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int]:
         burn = 2000
         sampler.run_mcmc(start, burn + n_draws * thin // n_walkers)
         draws = sampler.get_chain(discard=burn, thin=thin, flat=True)
-    return from_unit(draws, target.bounds), count[0]
+    return from_unit(draws, target.bounds), count[0], None
 
 
 def _runners(batch_size: int) -> dict[str, Callable[[], Runner]]:
@@ -323,6 +329,15 @@ def summarize_rows(rows: list[dict], methods: list[str], threshold: float = 0.05
                 f"{key[0]:24s} {key[1]:5d} {method:18s} median {med:.4f} worst {worst:.4f} "
                 f"mean {mean:.4f} (n={n}){verdict}"
             )
+            mine = [r for r in rows if (r["target"], r["budget"], r["method"]) == (*key, method)]
+            judged = [r for r in mine if r.get("verdict")]
+            if judged:  # the honesty side: a trusted verdict on a posterior that is off
+                silent = sum(r["verdict"] == "trusted" and r["mmtv"] > threshold for r in judged)
+                trusted = sum(r["verdict"] == "trusted" for r in judged)
+                lines.append(
+                    f"{'':49s}verdict trusted {trusted}/{len(judged)}; trusted with MMTV > "
+                    f"{threshold}: {silent}"
+                )
     return lines
 
 
@@ -387,7 +402,7 @@ def main(argv: list[str] | None = None) -> int:
                     try:
                         runner = runners.setdefault(method, factories[method]())
                         with torch_threads(1):
-                            draws, used = runner(run_target, budget, seed)
+                            draws, used, verdict = runner(run_target, budget, seed)
                     except (ImportError, NotImplementedError) as exc:
                         print(f"{name:24s} {budget:6d} {method:12s} skipped: {exc}", flush=True)
                         break
@@ -402,11 +417,12 @@ def main(argv: list[str] | None = None) -> int:
                         "mmtv": float(tv.mean()),
                         "tv": tv.tolist(),
                         "seconds": dt,
+                        "verdict": verdict,
                     }
                     rows.append(row)
                     print(
                         f"{name:24s} {budget:6d} {method:12s} {seed:4d} {used:5d} "
-                        f"{tv.mean():7.4f} {dt:7.1f}",
+                        f"{tv.mean():7.4f} {dt:7.1f}  {verdict or ''}",
                         flush=True,
                     )
                     if args.out:

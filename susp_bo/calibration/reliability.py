@@ -18,9 +18,17 @@ Rules (each a pure function of numbers, testable alone):
   ``z`` GP standard deviations below the surrogate's predicted maximum (its value
   at the joint MAP); or the refinement stopped on the budget rather than on its
   criterion (no refinement at all, EGO still running, or the posterior mean of
-  sd[log L̃] still above ``uncertainty_tolerance`` nats); or, when the output-error
-  model gives the log L expected at the true parameters (mean, sd), the best
-  observed log L lies far below it.
+  sd[log L̃] still above ``uncertainty_tolerance`` nats).
+- ``below_expected_fit`` (:func:`below_expected_fit`): when the output-error model
+  gives the log L expected at the true parameters (mean, sd), the best observed
+  log L lies far below it (more than ``gap_tolerance`` + ``truth_z`` sd). The data
+  are then not reproduced as well as B says they would be at the truth: either the
+  model lacks physics that is in the data (``susp-bo diagnose`` looks for it), or
+  the search sits in a local optimum. It is its own reason, apart from
+  ``not_converged``, because the two call for different actions: when it is the
+  *only* reason, the loop has finished by its own criteria and more budget alone
+  is not the remedy; ``susp-bo diagnose`` accepts such a calibration (a finished
+  fit that misses the data is exactly what it examines).
 - ``at_bound`` (:func:`at_bound`): more than ``mass`` of a parameter's posterior
   draws sit within ``strip`` (fraction of the admissible width, at most half a
   posterior sd) of one bound —
@@ -64,6 +72,7 @@ Reason = dict[str, Any]
 ORDER = (
     "budget_too_small",
     "not_converged",
+    "below_expected_fit",
     "at_bound",
     "surrogate_misfit",
     "surrogate_unchecked",
@@ -221,11 +230,9 @@ def not_converged(
     stop_reason: str,
     last_phase: str | None,
     last_criterion: float,
-    expected_at_truth: tuple[float, float] | None = None,
     gap_tolerance: float = 1.0,
     z: float = 2.0,
     uncertainty_tolerance: float = 0.3,
-    truth_z: float = 3.0,
 ) -> Reason | None:
     """``not_converged`` when the search did not reach the optimum (module docstring).
 
@@ -236,13 +243,10 @@ def not_converged(
         stop_reason: ``CalibrationResult.stop_reason`` ("budget", "converged", ...).
         last_phase: phase of the last EGO/refinement batch ("ego", "refine"), None if none ran.
         last_criterion: its stopping statistic (EI/spread or posterior mean sd[log L̃], nats).
-        expected_at_truth: (mean, sd) of log L at the true parameters under the output-error
-            model, when the model provides it.
         gap_tolerance: nats allowed between the predicted maximum and the best observed.
         z: GP standard deviations allowed on top of ``gap_tolerance``.
         uncertainty_tolerance: posterior mean sd[log L̃] (nats) above which a refinement
             stopped by the budget counts as unfinished.
-        truth_z: sds of the truth's log L allowed below its mean (plus ``gap_tolerance``).
     """
     findings: list[str] = []
     reason: Reason = {"code": "not_converged"}
@@ -269,19 +273,45 @@ def not_converged(
     if unfinished is not None:
         findings.append(unfinished)
         reason.update(stopped_by="budget", last_phase=last_phase, last_criterion=last_criterion)
-    if expected_at_truth is not None:
-        mean, sd = expected_at_truth
-        floor = mean - gap_tolerance - truth_z * sd
-        if not best_log_likelihood >= floor:
-            findings.append(
-                f"the best log L {best_log_likelihood:.1f} is {mean - best_log_likelihood:.1f} "
-                f"nats below the log L expected at the true parameters ({mean:.1f} ± {sd:.2g})"
-            )
-            reason.update(expected_at_truth=[float(mean), float(sd)])
     if not findings:
         return None
     reason["message"] = "; ".join(findings)
     return reason
+
+
+def below_expected_fit(
+    best_log_likelihood: float,
+    expected_at_truth: tuple[float, float] | None,
+    *,
+    gap_tolerance: float = 1.0,
+    truth_z: float = 3.0,
+) -> Reason | None:
+    """``below_expected_fit`` when the best log L lies far below the log L that the
+    output-error model expects at the true parameters (module docstring).
+
+    Args:
+        best_log_likelihood: best observed log L (nats).
+        expected_at_truth: (mean, sd) of log L at the true parameters under B; None when
+            the model gives none (the rule cannot fire).
+        gap_tolerance: nats allowed below the mean, on top of ``truth_z`` sd.
+        truth_z: sds of the truth's log L allowed below its mean.
+    """
+    if expected_at_truth is None:
+        return None
+    mean, sd = expected_at_truth
+    floor = mean - gap_tolerance - truth_z * sd
+    if best_log_likelihood >= floor:
+        return None
+    return {
+        "code": "below_expected_fit",
+        "message": (
+            f"the best log L {best_log_likelihood:.1f} is {mean - best_log_likelihood:.1f} nats "
+            f"below the log L expected at the true parameters ({mean:.1f} ± {sd:.2g}): the "
+            "model misses something in the data, or the search sits in a local optimum"
+        ),
+        "expected_at_truth": [float(mean), float(sd)],
+        "deficit_nats": float(mean - best_log_likelihood),
+    }
 
 
 def at_bound(
@@ -421,6 +451,8 @@ def poor_mixing(
 _ADVICE = {
     "budget_too_small": "rerun with --budget {minimum} or more",
     "not_converged": "rerun with --resume --budget {more}",
+    "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
+    "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
     "at_bound": "widen that parameter's admissible interval if its value may lie outside, "
     "or rerun with --resume --budget {more}",
     "surrogate_misfit": "rerun with --resume --budget {more}",
@@ -489,8 +521,8 @@ def assess(
             stop_reason=stop_reason,
             last_phase=last_phase,
             last_criterion=last_criterion,
-            expected_at_truth=expected_at_truth,
         ),
+        below_expected_fit(best_log_likelihood, expected_at_truth),
         at_bound(u, names, bounds),
         surrogate_misfit(check),
         poor_mixing(r_hat, ess, names),

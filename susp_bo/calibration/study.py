@@ -294,7 +294,7 @@ def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float
     At the truth the residuals y_i − h(x_i, w) are draws of B, so this expectation needs
     B only, not the truth itself: it applies to measured data too. None until the
     output-error model provides it (wire it here); the verdict then also checks the best
-    log L against it (``not_converged``). None when the model cannot give it (no
+    log L against it (``below_expected_fit``). None when the model cannot give it (no
     sensor noise with the paired model).
     """
     mean, sd = expected_at_truth_under(study.error, study.measured, study.frequencies_hz)

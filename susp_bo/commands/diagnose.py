@@ -7,9 +7,14 @@
    model discrepancy, exit code 0 and the sentence on stderr: the residuals of an
    unfinished fit are not missing physics. ``--force`` runs the workflow anyway;
    its findings are then kept under ``forced_diagnosis`` and
-   ``residual_bands_untrusted_fit``, never as the answer.
+   ``residual_bands_untrusted_fit``, never as the answer. One exception: a
+   calibration whose *only* reason is ``below_expected_fit`` (the loop finished
+   by its own criteria, but its best log L is far below what the output-error
+   model expects at the true parameters) is a finished fit that misses the data —
+   what this workflow is for — so it proceeds, and says so
+   (``calibration_reliability.fit_finished``).
 
-Then, on a trusted calibration, reads the study of ``RESULT_DIR`` (``study.toml``,
+Then, on a finished calibration, reads the study of ``RESULT_DIR`` (``study.toml``,
 the measured runs it names) and (:mod:`susp_bo.discrepancy.workflow`):
 
 1. checks the calibrated model — posterior draws (joint MAP plus Gaussian draws
@@ -28,6 +33,9 @@ the measured runs it names) and (:mod:`susp_bo.discrepancy.workflow`):
    and the refit itself is one of the design's points;
 4. checks the augmented model the same way and accepts it only if it beats the
    base model over all bins (:func:`~susp_bo.discrepancy.verdict.accept_augmented`);
+   the recalibration's own verdict (``augmented_reliability``; with the same log L
+   expected at the truth, which needs the data and B only) says whether the
+   augmented model now reproduces the data as B expects;
    writes ``discrepancy.json`` (verdict, flagged, ranking, named_effect, gap_before,
    gap_after, …) and the figures, and the verdict's sentence on stderr.
 
@@ -42,6 +50,7 @@ import argparse
 import dataclasses
 import json
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -89,6 +98,7 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
     from susp_bo.calibration.study import (
         STORE_NAME,
         calibration_settings,
+        expected_log_likelihood_at_truth,
         store_fingerprint,
         study_evaluator,
     )
@@ -127,7 +137,15 @@ def _study_recalibration(study: Any, out: Path, budget: int | None, progress: bo
         ):
             evaluator = study_evaluator(study, store, executor, progress, spec, names)
             result = calibrate(
-                evaluator, bounds, names, settings, progress=progress, initial_points=start[None]
+                evaluator,
+                bounds,
+                names,
+                settings,
+                progress=progress,
+                initial_points=start[None],
+                # B's expectation at the truth needs the data and B only, not the model: the
+                # augmented model's verdict says whether it now reproduces the data as B expects
+                expected_at_truth=expected_log_likelihood_at_truth(study),
             )
         summary = result.summary.to_dict()
         span = bounds[1] - bounds[0]
@@ -215,7 +233,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     if not isinstance(payload, dict):
         raise UsageError(f"RESULT_DIR: {result_file} holds no JSON object")
     reliability = calibration_reliability(payload)
-    if not reliability.trusted and not force:
+    if not reliability.fit_finished and not force:
         out = output_folder(args.out)
         document = _not_trusted_document(reliability, result_dir, payload, payload.get("rig"))
         write_json(out / "discrepancy.json", json_ready(document))
@@ -246,10 +264,17 @@ def run_diagnose(args: argparse.Namespace) -> int:
     print(
         f"susp-bo diagnose: {len(study.runs)} runs of {study.spec.name}, checks on {kind}, "
         "ranking on the linearised rig"
-        + ("; FORCED on a calibration that is not trusted" if not reliability.trusted else ""),
+        + ("; FORCED on a calibration that is not trusted" if not reliability.fit_finished else "")
+        + (
+            "; the calibration finished but fits the data worse than its output-error model "
+            "expects at the true parameters (below_expected_fit): looking for what is missing"
+            if reliability.fit_finished and not reliability.trusted
+            else ""
+        ),
         file=sys.stderr,
     )
     fast = LinearSimulator() if kind == "pybullet" else simulator
+    started = time.time()
     report = run_workflow(
         problem,
         simulator,
@@ -262,8 +287,14 @@ def run_diagnose(args: argparse.Namespace) -> int:
     )
     document = report.to_dict()
     document.update(result_dir=str(result_dir), rig=study.spec.name)
+    augmented_result = out / "augmented" / "result.json"
+    if augmented_result.is_file() and augmented_result.stat().st_mtime >= started:
+        # the model recalibrated by this run: its own reliability verdict
+        document["augmented_reliability"] = json.loads(augmented_result.read_text()).get(
+            "reliability"
+        )
     document["calibration_reliability"] = reliability.to_dict()
-    if not reliability.trusted:  # --force: findings kept aside, labelled, never the answer
+    if not reliability.fit_finished:  # --force: findings kept aside, labelled, never the answer
         forced = document
         document = _not_trusted_document(reliability, result_dir, payload, study.spec.name)
         document.update(
@@ -278,7 +309,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     write_figures(report, out)
     print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
     g0, g1 = report.gap_before, report.gap_after
-    if report.verdict == "named" and reliability.trusted:
+    if report.verdict == "named" and reliability.fit_finished:
         print(
             f"susp-bo diagnose: gap on the bins flagged before {g0['value']:.3g} -> "
             f"{g1['value']:.3g}; on all bins {g0['value_all_bins']:.3g} -> "

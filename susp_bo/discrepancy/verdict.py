@@ -346,14 +346,27 @@ class CalibrationReliability:
     reasons: tuple[dict[str, Any], ...]
     sentence: str
 
+    @property
+    def fit_finished(self) -> bool:
+        """The fit is done: trusted, or its only reason is ``below_expected_fit`` (the loop
+        finished by its own criteria and still misses the data by more than B allows —
+        what the discrepancy workflow examines)."""
+        codes = {str(r.get("code")) for r in self.reasons}
+        return self.trusted or (self.verdict == "not_trusted" and codes == {BELOW_EXPECTED})
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
         return {
             "verdict": self.verdict,
             "trusted": self.trusted,
+            "fit_finished": self.fit_finished,
             "reasons": [dict(r) for r in self.reasons],
             "sentence": self.sentence,
         }
+
+
+BELOW_EXPECTED = "below_expected_fit"
+"""The reliability reason that alone does not stop the workflow (CalibrationReliability)."""
 
 
 def calibration_reliability(payload: Mapping[str, Any]) -> CalibrationReliability:

@@ -22,7 +22,8 @@ the study goes from that design straight to the local phase
 (``run_study(local_after_design=True)``): the global EGO batches are what a warm
 design makes redundant. The reliability verdict of the new campaign
 is computed exactly as for a cold start, so a part that changed far more than
-expected shows up as ``not_converged`` or ``surrogate_misfit``, never as a
+expected shows up as ``not_converged``, ``below_expected_fit`` or
+``surrogate_misfit``, never as a
 confident answer near the old value.
 """
 

@@ -197,8 +197,9 @@ class WavySpectra:
 
 def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> None:
     """The design only sees [7, 10]: the local phase climbs a wrong hill, the interval
-    misses the truth, and the verdict says ``not_converged`` (best log L far below the
-    log L expected at the truth, −n/2 ± √(n/2) for this Gaussian B)."""
+    misses the truth, and the verdict says ``below_expected_fit`` (best log L far below
+    the log L expected at the truth, −n/2 ± √(n/2) for this Gaussian B; its message names
+    the local optimum as one of the two causes)."""
     problem = WavySpectra()
     bounds = np.array([[0.0], [10.0]])
     n = problem.f.size
@@ -222,4 +223,5 @@ def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> Non
     assert not lo <= 3.0 <= hi  # a confident wrong answer...
     rel = result.reliability
     assert rel is not None and rel.verdict == "not_trusted"  # ...that says it is not trusted
-    assert "not_converged" in rel.codes
+    assert "below_expected_fit" in rel.codes
+    assert "local optimum" in rel.sentence

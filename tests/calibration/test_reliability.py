@@ -12,6 +12,7 @@ from susp_bo.calibration.loop import BudgetTooSmallError, CalibrationSettings, c
 from susp_bo.calibration.reliability import (
     Reliability,
     at_bound,
+    below_expected_fit,
     budget_requirement,
     budget_too_small,
     not_converged,
@@ -65,10 +66,17 @@ def test_not_converged_sub_rules() -> None:
     unfinished = not_converged(**_converged(stop_reason="budget", last_criterion=0.8))
     assert unfinished is not None and "0.80 nats" in unfinished["message"]
     assert not_converged(**_converged(stop_reason="budget", last_criterion=0.1)) is None
-    # the log L expected at the truth under B: far above the best observed -> fires
-    truth = not_converged(**_converged(expected_at_truth=(-3.0, 1.0)))
-    assert truth is not None and "expected at the true parameters" in truth["message"]
-    assert not_converged(**_converged(expected_at_truth=(-9.0, 1.0))) is None
+
+
+def test_below_expected_fit_fires_only_far_below_the_log_likelihood_expected_at_the_truth() -> None:
+    """Best log L -10 against B's expectation (mean, sd): the floor is mean - 1 - 3 sd."""
+    far = below_expected_fit(-10.0, (-3.0, 1.0))  # floor -7
+    assert far is not None and far["code"] == "below_expected_fit"
+    assert "expected at the true parameters" in far["message"] and "local optimum" in far["message"]
+    assert far["deficit_nats"] == pytest.approx(7.0)
+    assert below_expected_fit(-10.0, (-3.0, 2.0)) is None  # floor -10: just inside
+    assert below_expected_fit(-10.0, (-9.0, 1.0)) is None
+    assert below_expected_fit(-10.0, None) is None  # no expectation: cannot fire
 
 
 def test_at_bound_only_for_mass_piled_at_a_bound() -> None:
@@ -243,8 +251,8 @@ def test_an_unseen_optimum_is_caught_by_the_log_likelihood_expected_at_the_truth
     )
     assert np.nanmax(result.y) < 1.0  # the needle was never hit
     rel = result.reliability
-    assert rel is not None and "not_converged" in rel.codes
-    reason = next(r for r in rel.reasons if r["code"] == "not_converged")
+    assert rel is not None and "below_expected_fit" in rel.codes
+    reason = next(r for r in rel.reasons if r["code"] == "below_expected_fit")
     assert "expected at the true parameters" in reason["message"]
 
 

@@ -1,12 +1,15 @@
-"""`susp-bo diagnose` end to end (synth → calibrate → diagnose, PyBullet): one test per verdict.
+"""`susp-bo diagnose` end to end (synth → calibrate → diagnose, PyBullet): one test per verdict,
+each on the calibration's **real** reliability verdict.
 
-The small study of these tests (q = 2, 10 evaluations) is below the minimum budget on
-purpose, to keep the suite fast, so its own verdict is ``not_trusted``
-(``budget_too_small``): the gate answers ``calibration_not_trusted`` with the real
-verdict (first tests). To exercise the other three answers on PyBullet data, the tests
-of ``consistent``, ``named`` and ``unexplained_disagreement`` first check that real
-verdict, then replace it with a stand-in ``trusted`` one (:func:`assume_trusted`): they
-test what the workflow says *given* a trusted fit, not that such a small fit is trusted.
+- ``calibration_not_trusted``: the small study of the ``uninterrupted`` fixture (q = 2,
+  10 evaluations, below the minimum budget on purpose), whose own verdict is
+  ``not_trusted`` (``budget_too_small``).
+- ``consistent``, ``named``, ``unexplained_disagreement``: a q = 1 study (secondary
+  vertical damping) with the paired output-error model and the local phase, 40
+  evaluations, on 8 s records. On data with nothing missing its real verdict is
+  ``trusted``; on data with a hidden effect or a mis-mounted sensor it is ``not_trusted``
+  with the single reason ``below_expected_fit`` (the loop finished, but the fit is far
+  below what B expects at the truth), which the gate lets through as a finished fit.
 """
 
 from __future__ import annotations
@@ -51,17 +54,6 @@ def _set_reliability(result_dir: Path, reliability: dict | None) -> None:
     path.write_text(json.dumps(payload))
 
 
-def assume_trusted(result_dir: Path) -> dict:
-    """Replaces the small study's real verdict (checked: ``not_trusted``, budget too small)
-    with a stand-in ``trusted`` one; returns the real one."""
-    payload = json.loads((result_dir / "result.json").read_text())
-    real = payload["reliability"]
-    assert real["verdict"] == "not_trusted"
-    assert "budget_too_small" in [reason["code"] for reason in real["reasons"]]
-    _set_reliability(result_dir, {"verdict": "trusted", "reasons": [], "sentence": "stand-in"})
-    return real
-
-
 def _copy(result_dir: Path, tmp_path: Path) -> Path:
     """A private copy of a shared results folder (diagnose reads it; tests edit result.json)."""
     target = tmp_path / "result"
@@ -80,12 +72,36 @@ def _synth(tmp_path: Path, rig: Path, *synth: str) -> Path:
     return data
 
 
-def _calibrate(tmp_path: Path, rig: Path, data: Path, study_writer, calibrate_command) -> Path:
-    """``susp-bo calibrate`` of the small study (q = 2, 10 evaluations); the results folder."""
-    config = study_writer(tmp_path, rig, data, tmp_path / "study")
-    calibrated = calibrate_command(config)
+def _calibrate(tmp_path: Path, rig: Path, data: Path) -> tuple[Path, dict]:
+    """``susp-bo calibrate`` of the q = 1 paired study (module docstring); the results folder
+    and its real reliability verdict."""
+    config = tmp_path / "study.toml"
+    config.write_text(
+        tomli_w.dumps(
+            {
+                "rig": str(rig),
+                "data": str(data),
+                "out": str(tmp_path / "study"),
+                "parameters": list(TRUTH),
+                "budget": {"max_evaluations": 40, "initial_design": 8, "batch_size": 2,
+                           "check_points": 4},
+                "executor": {"workers": 0},
+                "mcmc": {"chains": 16, "draws": 500, "warmup": 300},
+                "output_error": {"model": "paired"},
+                "search": {"local": True},
+            }
+        )
+    )  # fmt: skip
+    calibrated = _cli("calibrate", str(config))
     assert calibrated.returncode == 0, calibrated.stderr[-3000:]
-    return tmp_path / "study"
+    result = tmp_path / "study"
+    return result, json.loads((result / "result.json").read_text())["reliability"]
+
+
+def _finished_below_expected(reliability: dict) -> None:
+    """The real verdict of a fit that finished and misses the data: only below_expected_fit."""
+    assert reliability["verdict"] == "not_trusted", reliability["sentence"]
+    assert [r["code"] for r in reliability["reasons"]] == ["below_expected_fit"]
 
 
 # ---------------------------------------------------------------- calibration_not_trusted
@@ -134,10 +150,10 @@ def test_force_runs_the_workflow_but_the_answer_stays_not_trusted(
 
 
 @pytest.mark.slow
-def test_diagnose_names_nothing_when_nothing_is_missing(uninterrupted: Path, tmp_path: Path):
-    """Given a trusted fit (stand-in verdict, see the module docstring)."""
-    result = _copy(uninterrupted, tmp_path)
-    assume_trusted(result)
+def test_diagnose_names_nothing_when_nothing_is_missing(fast_rig: Path, tmp_path: Path):
+    data = _synth(tmp_path, fast_rig)
+    result, reliability = _calibrate(tmp_path, fast_rig, data)
+    assert reliability["verdict"] == "trusted", reliability["sentence"]  # the real verdict
     done = _diagnose(result, tmp_path / "diagnosis")
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads((tmp_path / "diagnosis" / "discrepancy.json").read_text())
@@ -146,6 +162,7 @@ def test_diagnose_names_nothing_when_nothing_is_missing(uninterrupted: Path, tmp
     assert report["verdict"] == "consistent"
     assert report["named_effect"] is None
     assert report["flagged"] == []
+    assert report["calibration_reliability"]["trusted"] is True
     assert "consistent" in done.stderr
     assert list((tmp_path / "diagnosis").glob("*.png"))
 
@@ -155,17 +172,18 @@ def test_diagnose_names_nothing_when_nothing_is_missing(uninterrupted: Path, tmp
 
 @pytest.mark.slow
 def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
-    fast_rig: Path, study_writer, calibrate_command, tmp_path: Path
+    fast_rig: Path, tmp_path: Path
 ) -> None:
-    """Given a trusted fit (stand-in verdict, see the module docstring)."""
     data = _synth(tmp_path, fast_rig, "--effect", "carbody_bending:frequency_hz=9.0")
-    result = _calibrate(tmp_path, fast_rig, data, study_writer, calibrate_command)
-    assume_trusted(result)
-    done = _diagnose(result, tmp_path / "diagnosis", "--budget", "10")
+    result, reliability = _calibrate(tmp_path, fast_rig, data)
+    _finished_below_expected(reliability)  # the base model cannot reproduce the data
+    done = _diagnose(result, tmp_path / "diagnosis", "--budget", "40")
     assert done.returncode == 0, done.stderr[-3000:]
+    assert "below_expected_fit" in done.stderr
     report = json.loads((tmp_path / "diagnosis" / "discrepancy.json").read_text())
     assert report["verdict"] == "named"
     assert report["named_effect"] == "carbody_bending"
+    assert report["calibration_reliability"]["fit_finished"] is True
     assert report["ranking"][0]["effect"] == "carbody_bending"
     assert any("vertical" in band["channel"] for band in report["flagged"])
     # accepted only if better over all bins; the gap reported on the flagged bins and on all
@@ -175,9 +193,17 @@ def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
     assert augmented["flagged_fraction_after"] < augmented["flagged_fraction_before"]
     assert report["gap_after"]["value"] <= 0.5 * report["gap_before"]["value"]
     assert report["gap_after"]["value_all_bins"] < report["gap_before"]["value_all_bins"]
-    # warm start: the recalibration's design holds the ranking refit
+    # the augmented model reproduces the data as B expects: its own real verdict is trusted,
+    # and it recovers the hidden mode's frequency and the damper
+    assert report["augmented_reliability"]["verdict"] == "trusted", report["augmented_reliability"][
+        "sentence"
+    ]
     recalibrated = json.loads((tmp_path / "diagnosis" / "augmented" / "result.json").read_text())
-    assert recalibrated["reliability"]["verdict"] in ("trusted", "not_trusted")  # its own verdict
+    names = recalibrated["parameters"]
+    lo, hi = recalibrated["interval95"][names.index("carbody_bending_frequency_hz")]
+    assert lo <= 9.0 <= hi and hi - lo < 0.1
+    lo, hi = recalibrated["interval95"][names.index("secondary_vertical_damping")]
+    assert lo <= TRUTH["secondary_vertical_damping"] <= hi
     assert "named: carbody_bending" in done.stderr
 
 
@@ -185,21 +211,16 @@ def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
 
 
 @pytest.mark.slow
-def test_out_of_library_physics_is_flagged_and_not_named(
-    fast_rig: Path, study_writer, calibrate_command, tmp_path: Path
-) -> None:
+def test_out_of_library_physics_is_flagged_and_not_named(fast_rig: Path, tmp_path: Path) -> None:
     """The front bogie lateral accelerometer mounted rolled by 20° (it reads vertical motion
-    too): the records change, not the vehicle, and no library effect represents it.
-
-    Given a trusted fit (stand-in verdict, see the module docstring).
-    """
+    too): the records change, not the vehicle, and no library effect represents it."""
     data = _synth(tmp_path, fast_rig)
     change = get_modification("sensor_rolled")
     for path in sorted(data.glob("run_*.h5")):
         save_run(change.apply_run(load_run(path)), path)
-    result = _calibrate(tmp_path, fast_rig, data, study_writer, calibrate_command)
-    assume_trusted(result)
-    done = _diagnose(result, tmp_path / "diagnosis", "--budget", "10")
+    result, reliability = _calibrate(tmp_path, fast_rig, data)
+    _finished_below_expected(reliability)
+    done = _diagnose(result, tmp_path / "diagnosis", "--budget", "40")
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads((tmp_path / "diagnosis" / "discrepancy.json").read_text())
     assert report["flagged"], "the rolled sensor must be flagged"
