@@ -20,6 +20,15 @@ After warm-up Σ and s are frozen, so the sampling phase is an exact MH chain (t
 test suite checks moments on Gaussian and banana targets against the truth and
 against emcee, through ``pyro.infer.MCMC`` and through the fast path).
 
+Separated modes (:mod:`.mode_jumps`): half-way through warm-up the chains'
+positions are split into clearly separated clusters; with two or more, each chain
+and step proposes, with probability ``jump_probability``, a jump drawn from a
+frozen Gaussian mixture over the modes (an independence proposal with its MH
+correction) instead of the random-walk move, so the chains share the mass between
+modes as the posterior does instead of as they started. When no split is found
+the kernel is exactly the random-walk kernel above (same random numbers, same
+draws).
+
 Two drivers run the same ``sample`` step function:
 
 - :func:`run_pyro` — through ``pyro.infer.MCMC`` (``num_chains=1``: our chains live
@@ -40,6 +49,7 @@ import torch
 from pyro.infer import MCMC
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 
+from susp_bo.calibration.mode_jumps import MixtureProposal, find_modes
 from susp_bo.progress import progress_bar, redrawn_bars
 
 Potential = Callable[[torch.Tensor], torch.Tensor]
@@ -62,6 +72,8 @@ class RandomWalkMetropolis(MCMCKernel):
         target_accept: target acceptance rate in (0, 1); default by dimension.
         seed: seed of the kernel's own generator (reset in ``setup``).
         site: name of the parameter in the params dict.
+        jump_probability: per chain and step, the probability of a mode jump once
+            separated modes were found half-way through warm-up (0 = never look).
     """
 
     transforms: dict = {}  # noqa: RUF012  (tells pyro.infer.MCMC there is no model)
@@ -76,8 +88,12 @@ class RandomWalkMetropolis(MCMCKernel):
         target_accept: float | None = None,
         seed: int = 0,
         site: str = "w",
+        jump_probability: float = 0.1,
     ) -> None:
         init = torch.as_tensor(initial_params, dtype=torch.float64)
+        if not 0.0 <= jump_probability < 1.0:
+            raise ValueError(f"jump_probability: {jump_probability} must be in [0, 1)")
+        self.jump_probability = float(jump_probability)
         if init.ndim != 2 or init.shape[0] < 1:
             raise ValueError(f"initial_params: shape {tuple(init.shape)}, expected (n_chains x q)")
         q = init.shape[1]
@@ -130,6 +146,9 @@ class RandomWalkMetropolis(MCMCKernel):
         self._window_count = 0
         self._accepted = 0.0
         self._proposed = 0
+        self._mixture: MixtureProposal | None = None
+        self._jumps_proposed = 0
+        self._jumps_accepted = 0.0
         self._state = self._init
         self._potential = self._evaluate(self._init)
         if not torch.all(torch.isfinite(self._potential)):
@@ -144,24 +163,48 @@ class RandomWalkMetropolis(MCMCKernel):
         x = params[self.site]
         if x is not self._state:
             self._state, self._potential = x, self._evaluate(x)
+        if self._t == self.warmup_steps // 2 and self.jump_probability > 0.0:
+            self._plan_jumps(x)
         noise = torch.randn(x.shape, generator=self._generator, dtype=torch.float64)
         scale = self._base * math.exp(self._log_scale)
         proposal = x + scale * noise @ self._chol.T
+        jump = None
+        if self._mixture is not None:  # with one mode: no extra random numbers at all
+            jump = (
+                torch.rand(x.shape[0], generator=self._generator, dtype=torch.float64)
+                < self.jump_probability
+            )
+            drawn = self._mixture.draw(x.shape[0], self._generator)
+            proposal = torch.where(jump[:, None], drawn, proposal)
         u_prop = self._evaluate(proposal)
         log_u = torch.log(torch.rand(x.shape[0], generator=self._generator, dtype=torch.float64))
         log_alpha = self._potential - u_prop
+        if jump is not None and self._mixture is not None:  # independence-proposal correction
+            correction = self._mixture.log_density(x) - self._mixture.log_density(proposal)
+            log_alpha = log_alpha + torch.where(jump, correction, torch.zeros_like(correction))
         accept = log_u < log_alpha
         new_x = torch.where(accept[:, None], proposal, x)
         self._potential = torch.where(accept, u_prop, self._potential)
         self._state = new_x
+        if jump is not None:
+            self._jumps_proposed += int(jump.sum())
+            self._jumps_accepted += float((accept & jump).sum())
         if self._t < self.warmup_steps:
             if self.adapt:
-                self._adapt(new_x, log_alpha)
+                self._adapt(new_x, log_alpha if jump is None else log_alpha[~jump])
         else:
             self._accepted += float(accept.sum())
             self._proposed += x.shape[0]
         self._t += 1
         return {self.site: new_x}
+
+    def _plan_jumps(self, x: torch.Tensor) -> None:
+        """Half-way through warm-up: the frozen mixture proposal when the chains sit in
+        two or more separated modes (:func:`~.mode_jumps.find_modes`), else none."""
+        finite = torch.isfinite(self._potential)
+        clusters = find_modes(x[finite]) if int(finite.sum()) > 2 * (x.shape[1] + 2) else []
+        if len(clusters) >= 2:
+            self._mixture = MixtureProposal.of(x[finite], clusters)
 
     def _adapt(self, x: torch.Tensor, log_alpha: torch.Tensor) -> None:
         q = x.shape[1]
@@ -196,9 +239,18 @@ class RandomWalkMetropolis(MCMCKernel):
         return {"scale": self._base * math.exp(self._log_scale)}
 
     def diagnostics(self) -> dict[str, float]:
-        """Acceptance rate over the sampling phase and the final proposal scale."""
+        """Acceptance rate over the sampling phase, the final proposal scale, the number of
+        separated modes found and the acceptance rate of the jumps between them."""
         rate = self._accepted / self._proposed if self._proposed else float("nan")
-        return {"acceptance rate": rate, "scale": self._base * math.exp(self._log_scale)}
+        jumps = (
+            self._jumps_accepted / self._jumps_proposed if self._jumps_proposed else float("nan")
+        )
+        return {
+            "acceptance rate": rate,
+            "scale": self._base * math.exp(self._log_scale),
+            "modes": float(1 if self._mixture is None else self._mixture.n_modes),
+            "jump acceptance rate": jumps,
+        }
 
     @property
     def proposal_covariance(self) -> torch.Tensor:

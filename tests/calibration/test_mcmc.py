@@ -89,7 +89,18 @@ def test_banana_moments_match_truth_and_emcee() -> None:
     diff = flat.mean(0) - em.reshape(-1, 2).mean(0)
     se = truth_sd * (1.0 / ess + 1.0 / ess_em).sqrt()
     assert torch.all(diff.abs() < 5.0 * se), (diff, se)
-    torch.testing.assert_close(flat.std(0), em.reshape(-1, 2).std(0), rtol=0.08, atol=0.0)
+
+    # standard deviations within 4 of their combined Monte Carlo errors: se(sd) =
+    # sd sqrt((kurtosis - 1) / (4 ESS)); x2 is skewed and heavy (kurtosis ~ 9), so its sd
+    # carries a 3-4 % Monte Carlo error for each sampler here
+    def sd_and_se(x: torch.Tensor, n_eff: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        centred = x.reshape(-1, 2) - x.reshape(-1, 2).mean(0)
+        kurtosis = (centred**4).mean(0) / (centred**2).mean(0) ** 2
+        sd = centred.std(0)
+        return sd, sd * ((kurtosis - 1.0) / (4.0 * n_eff)).sqrt()
+
+    (sd, sd_se), (sd_em, sd_em_se) = sd_and_se(draws, ess), sd_and_se(em, ess_em)
+    assert torch.all((sd - sd_em).abs() < 4.0 * (sd_se**2 + sd_em_se**2).sqrt()), (sd, sd_em)
 
 
 def test_support_is_respected_and_nan_potential_rejected() -> None:

@@ -1,0 +1,141 @@
+"""Mode jumps: separated modes are found (and single modes are not split), the mixture
+proposal's density is right, and the kernel shares the mass between modes as the exact
+posterior does, from starts that do not."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from scipy.stats import multivariate_normal
+
+from susp_bo.calibration.design import from_unit, to_unit
+from susp_bo.calibration.mcmc import RandomWalkMetropolis, chain_diagnostics, run_vectorized
+from susp_bo.calibration.mode_jumps import MixtureProposal, find_modes
+from susp_bo.calibration.test_functions import TARGETS
+
+
+def _cloud(rng: np.random.Generator, means: list[list[float]], counts: list[int]) -> torch.Tensor:
+    parts = [np.asarray(m) + 0.3 * rng.standard_normal((c, len(m))) for m, c in zip(means, counts)]
+    return torch.as_tensor(np.vstack(parts))
+
+
+def test_three_separated_clusters_are_found_with_their_members() -> None:
+    rng = np.random.default_rng(1)
+    x = _cloud(rng, [[0.0, 0.0, 0.0], [4.0, 0.0, 1.0], [0.0, 5.0, -2.0]], [300, 120, 60])
+    clusters = find_modes(x)
+    assert sorted(len(c) for c in clusters) == [60, 120, 300]
+    truth = np.repeat([0, 1, 2], [300, 120, 60])
+    for c in clusters:  # each cluster is one true group
+        assert len(set(truth[c.numpy()])) == 1
+
+
+@pytest.mark.parametrize("shape", ["gaussian", "banana", "ring", "student_t"])
+def test_one_mode_is_never_split(shape: str) -> None:
+    rng = np.random.default_rng(2)
+    z = rng.standard_normal((512, 2))
+    if shape == "gaussian":
+        x = rng.standard_normal((512, 7)) @ rng.standard_normal((7, 7))
+    elif shape == "banana":  # strongly curved: x2 | x1 ~ N(x1², 0.3²), x1 ~ N(0, 3²)
+        x = np.column_stack([3.0 * z[:, 0], 0.3 * z[:, 1] + (3.0 * z[:, 0]) ** 2 / 2])
+    elif shape == "ring":
+        x = np.column_stack([np.cos(2 * z[:, 0]), np.sin(2 * z[:, 0])]) + 0.05 * z
+    else:  # heavy tails
+        x = TARGETS["student_t_6d"]().sample(512, rng)
+    assert len(find_modes(torch.as_tensor(x))) == 1
+
+
+def test_a_small_group_is_not_a_mode() -> None:
+    """Fewer than max(2 % of the chains, q + 2) chains far away: not worth a component."""
+    rng = np.random.default_rng(3)
+    x = _cloud(rng, [[0.0, 0.0], [9.0, 9.0]], [508, 3])
+    assert len(find_modes(x)) == 1
+
+
+def test_the_mixture_density_is_the_equal_weight_gaussian_mixture() -> None:
+    rng = np.random.default_rng(4)
+    x = _cloud(rng, [[0.0, 0.0], [4.0, 1.0]], [200, 100])
+    clusters = find_modes(x)
+    mixture = MixtureProposal.of(x, clusters, inflation=1.5)
+    points = torch.as_tensor(rng.normal(2.0, 2.0, (50, 2)))
+    expected = np.log(
+        np.mean(
+            [
+                multivariate_normal(x[c].mean(0).numpy(), np.cov(x[c].numpy().T) * 2.25).pdf(
+                    points.numpy()
+                )
+                for c in clusters
+            ],
+            axis=0,
+        )
+    )
+    np.testing.assert_allclose(mixture.log_density(points).numpy(), expected, rtol=1e-9)
+    draws = mixture.draw(40_000, torch.Generator().manual_seed(0))
+    near_second = (draws[:, 0] > 2.0).double().mean()  # equal weights
+    assert abs(float(near_second) - 0.5) < 0.02
+
+
+def _trimodal_kernel(jump_probability: float) -> tuple[torch.Tensor, RandomWalkMetropolis]:
+    target = TARGETS["trimodal_5d"]()
+    bounds = target.bounds
+
+    def potential(u: torch.Tensor) -> torch.Tensor:
+        inside = torch.all((u >= 0) & (u <= 1), dim=-1)
+        value = -torch.as_tensor(target.log_likelihood(from_unit(u.clamp(0, 1).numpy(), bounds)))
+        return torch.where(inside, value, torch.full_like(value, math.inf))
+
+    rng = np.random.default_rng(0)
+    means = np.asarray(target.blocks[0].means)
+    exact = target.sample(20_000, rng)
+    label = np.argmin(((exact[:, None, :] - means[None]) ** 2).sum(-1), 1)
+    # starts as a surrogate run left them: 70 / 13 / 17 % against the exact 50 / 30 / 20 %
+    starts = np.vstack([exact[label == k][:n] for k, n in enumerate((179, 33, 44))])
+    kernel = RandomWalkMetropolis(
+        potential,
+        torch.as_tensor(to_unit(starts, bounds)),
+        proposal_cov=(0.03**2) * torch.eye(5, dtype=torch.float64),
+        seed=1,
+        jump_probability=jump_probability,
+    )
+    return run_vectorized(kernel, 1500, 500), kernel
+
+
+def _shares(draws: torch.Tensor) -> np.ndarray:
+    target = TARGETS["trimodal_5d"]()
+    w = from_unit(draws.reshape(-1, 5).numpy(), target.bounds)
+    means = np.asarray(target.blocks[0].means)
+    label = np.argmin(((w[:, None, :] - means[None]) ** 2).sum(-1), 1)
+    return np.bincount(label, minlength=3) / len(label)
+
+
+def test_jumps_give_each_mode_its_exact_share_from_biased_starts() -> None:
+    target = TARGETS["trimodal_5d"]()
+    exact = _shares(
+        torch.as_tensor(to_unit(target.sample(40_000, np.random.default_rng(9)), target.bounds))
+    )
+    stuck, _ = _trimodal_kernel(0.0)
+    jumping, kernel = _trimodal_kernel(0.1)
+    assert np.max(np.abs(_shares(stuck) - exact)) > 0.1  # without jumps: the starts' shares
+    assert np.max(np.abs(_shares(jumping) - exact)) < 0.03
+    assert kernel.diagnostics()["modes"] == 3
+    assert 0.1 < kernel.diagnostics()["jump acceptance rate"] < 0.9
+    r_stuck, _ = chain_diagnostics(stuck)
+    r_jumping, _ = chain_diagnostics(jumping)
+    assert float(r_stuck.max()) > 2.0 and float(r_jumping.max()) < 1.1
+
+
+def test_with_one_mode_the_draws_are_bit_identical_to_the_kernel_without_jumps() -> None:
+    def potential(w: torch.Tensor) -> torch.Tensor:
+        return 0.5 * (w * w).sum(1) + 0.3 * w[:, 0] * w[:, 1]
+
+    starts = torch.randn(64, 3, generator=torch.Generator().manual_seed(5))
+    runs = []
+    for p in (0.0, 0.1):
+        kernel = RandomWalkMetropolis(potential, starts, seed=3, jump_probability=p)
+        runs.append(run_vectorized(kernel, 300, 200))
+        assert kernel.diagnostics()["modes"] == 1
+    assert torch.equal(runs[0], runs[1])
+    with pytest.raises(ValueError, match="jump_probability"):
+        RandomWalkMetropolis(potential, starts, jump_probability=1.0)
