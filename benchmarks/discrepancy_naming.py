@@ -428,6 +428,10 @@ def cli_case(case: str, folder: Path, args: argparse.Namespace) -> dict:
         "accepted": augmented.get("accepted"),
         "lpd": [augmented.get(f"log_predictive_density_{s}") for s in ("before", "after")],
         "share": [augmented.get(f"flagged_fraction_{s}") for s in ("before", "after")],
+        "augmented_verdict": (doc.get("augmented_reliability") or {}).get("verdict"),
+        "augmented_reasons": [
+            r["code"] for r in (doc.get("augmented_reliability") or {}).get("reasons", [])
+        ],
         "best": check.get("effect"),
         "reasons": [r["code"] for r in check.get("reasons", [])],
         "calibrate_s": round(calibrated_s),

@@ -242,15 +242,14 @@ class RandomWalkMetropolis(MCMCKernel):
         """Acceptance rate over the sampling phase, the final proposal scale, the number of
         separated modes found and the acceptance rate of the jumps between them."""
         rate = self._accepted / self._proposed if self._proposed else float("nan")
-        jumps = (
-            self._jumps_accepted / self._jumps_proposed if self._jumps_proposed else float("nan")
-        )
-        return {
+        out = {
             "acceptance rate": rate,
             "scale": self._base * math.exp(self._log_scale),
             "modes": float(1 if self._mixture is None else self._mixture.n_modes),
-            "jump acceptance rate": jumps,
         }
+        if self._jumps_proposed:  # only when modes were found (no NaN in result dicts)
+            out["jump acceptance rate"] = self._jumps_accepted / self._jumps_proposed
+        return out
 
     @property
     def proposal_covariance(self) -> torch.Tensor:

@@ -15,6 +15,7 @@ from susp_bo.calibration.reliability import (
     below_expected_fit,
     budget_requirement,
     budget_too_small,
+    multimodal,
     not_converged,
     poor_mixing,
     surrogate_misfit,
@@ -293,3 +294,10 @@ def test_a_truth_outside_the_admissible_set_is_at_bound() -> None:
     assert reason["parameters"] == [
         {"name": "a", "side": "upper", "share": pytest.approx(reason["parameters"][0]["share"])}
     ]
+
+
+def test_multimodal_fires_from_two_separated_modes_and_leads_to_not_trusted() -> None:
+    assert multimodal(1) is None
+    reason = multimodal(3)
+    assert reason is not None and reason["code"] == "multimodal" and reason["modes"] == 3
+    assert "3 separated modes" in reason["message"]
