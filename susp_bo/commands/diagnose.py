@@ -8,11 +8,12 @@
    unfinished fit are not missing physics. ``--force`` runs the workflow anyway;
    its findings are then kept under ``forced_diagnosis`` and
    ``residual_bands_untrusted_fit``, never as the answer. One exception: a
-   calibration whose *only* reason is ``below_expected_fit`` (the loop finished
-   by its own criteria, but its best log L is far below what the output-error
-   model expects at the true parameters) is a finished fit that misses the data —
-   what this workflow is for — so it proceeds, and says so
-   (``calibration_reliability.fit_finished``).
+   calibration not trusted only because of ``below_expected_fit`` (the loop
+   finished by its own criteria, but its best log L is far below what the
+   output-error model expects at the true parameters), possibly with ``at_bound``
+   (parameters pushed to C_w's bounds to make up for the missing physics), is a
+   finished fit that misses the data — what this workflow is for — so it
+   proceeds, and says so (``calibration_reliability.fit_finished``).
 
 Then, on a finished calibration, reads the study of ``RESULT_DIR`` (``study.toml``,
 the measured runs it names) and (:mod:`susp_bo.discrepancy.workflow`):

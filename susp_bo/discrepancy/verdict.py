@@ -348,11 +348,17 @@ class CalibrationReliability:
 
     @property
     def fit_finished(self) -> bool:
-        """The fit is done: trusted, or its only reason is ``below_expected_fit`` (the loop
-        finished by its own criteria and still misses the data by more than B allows —
-        what the discrepancy workflow examines)."""
+        """The fit is done: trusted, or not trusted only because it misses the data by more
+        than B allows (``below_expected_fit``), possibly with parameters pushed to a bound
+        of C_w (``at_bound``: what a model lacking physics often does to compensate) — the
+        loop finished by its own criteria, and what is left is what the discrepancy
+        workflow examines. Any reason of an unfinished search or sampler keeps it out."""
         codes = {str(r.get("code")) for r in self.reasons}
-        return self.trusted or (self.verdict == "not_trusted" and codes == {BELOW_EXPECTED})
+        return self.trusted or (
+            self.verdict == "not_trusted"
+            and BELOW_EXPECTED in codes
+            and codes <= {BELOW_EXPECTED, "at_bound"}
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""

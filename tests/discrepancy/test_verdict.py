@@ -142,3 +142,30 @@ def test_bands_are_described_with_channel_band_sign_and_physics() -> None:
 def test_naming_rule_refuses_bad_thresholds(kwargs) -> None:
     with pytest.raises(ValueError, match="NamingRule"):
         NamingRule(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("verdict", "codes", "finished"),
+    [
+        ("trusted", [], True),
+        ("not_trusted", ["below_expected_fit"], True),
+        ("not_trusted", ["below_expected_fit", "at_bound"], True),  # compensating parameters
+        ("not_trusted", ["at_bound"], False),  # nothing says the model misses the data
+        ("not_trusted", ["not_converged", "below_expected_fit"], False),  # unfinished search
+        ("not_trusted", ["below_expected_fit", "surrogate_misfit"], False),
+        ("not_trusted", ["below_expected_fit", "multimodal"], False),
+        ("not_trusted", ["budget_too_small", "below_expected_fit"], False),
+        (None, [], False),  # no verdict at all
+    ],
+)
+def test_a_fit_is_finished_when_only_the_misfit_to_the_data_is_left(
+    verdict: str | None, codes: list[str], finished: bool
+) -> None:
+    payload = {}
+    if verdict is not None:
+        payload["reliability"] = {
+            "verdict": verdict,
+            "reasons": [{"code": c, "message": c} for c in codes],
+            "sentence": "s",
+        }
+    assert calibration_reliability(payload).fit_finished is finished
