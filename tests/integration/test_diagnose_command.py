@@ -177,7 +177,8 @@ def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
     data = _synth(tmp_path, fast_rig, "--effect", "carbody_bending:frequency_hz=9.0")
     result, reliability = _calibrate(tmp_path, fast_rig, data)
     _finished_below_expected(reliability)  # the base model cannot reproduce the data
-    done = _diagnose(result, tmp_path / "diagnosis", "--budget", "40")
+    # q = 3 in the recalibration (damper + the mode's frequency and damping): 60 evaluations
+    done = _diagnose(result, tmp_path / "diagnosis", "--budget", "60")
     assert done.returncode == 0, done.stderr[-3000:]
     assert "below_expected_fit" in done.stderr
     report = json.loads((tmp_path / "diagnosis" / "discrepancy.json").read_text())
