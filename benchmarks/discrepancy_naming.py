@@ -162,12 +162,16 @@ q = 4; 160 evaluations for the calibration and for the recalibration; load 3–5
 
 (bef = below_expected_fit: the loop finished — search converged, held-out check ok —
 but the best log L is 300–1 400 nats below what B expects at the truth.) * run before
-``fit_finished`` accepted ``at_bound`` beside ``below_expected_fit``; under the gate of
-this version the case goes on to the workflow (not re-run in full here).
+``fit_finished`` accepted ``at_bound`` beside ``below_expected_fit``; re-diagnosed with
+this version (``susp-bo diagnose OUT/lateral_bump_stop/result --out D --budget 160``):
+**named** ``lateral_bump_stop``, accepted (lpd −229 → 643, share 8.2 % → 0 %, 11
+bands); the augmented model's own verdict ``not_trusted`` for ``at_bound`` only: the true
+gap, 3 mm, is the lower bound of the effect's gap range (every base truth inside, e.g.
+primary damping 10.00 [9.996, 10.003] kN·s/m).
 
-Scores on the cases that reached the workflow: in library 2/2 right names, out of library
+Scores on the cases that reached the workflow: in library 3/3 right names, out of library
 0/3 false names and 3/3 flagged, null 0 bands (1 data set), accepted augmented models
-better on all bins 2/2. The augmented recalibrations' own verdicts: carbody bending
+better on all bins 3/3. The augmented recalibrations' own verdicts: carbody bending
 ``not_trusted`` (below_expected_fit 742 nats, at_bound) with the effect right (10.00
 [10.00, 10.01] Hz) but primary vertical damping pinned at 9.04 kN·s/m (truth 10.0): the
 recalibration window, centred on the ranking's linearised-rig refit (5.3 kN·s/m),

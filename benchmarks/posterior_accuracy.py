@@ -126,14 +126,14 @@ counts the runs that were ``trusted`` with MMTV > 0.05 (the silent failures).
   sampler make a result ``not_trusted`` (the mass between modes rests on the surrogate
   where the check does not look). With it (final code, ``python
   benchmarks/posterior_accuracy.py --budget-fractions 1.0 --targets trimodal_5d
-  curved_chain_5d --methods susp_bo --seeds 0 1 2``): trimodal seed 0 MMTV **.023**,
-  ``not_trusted (multimodal)`` — right and refused; seeds 1–2 and the curved chain with
-  the final code did not finish in the session (the intermediate code's curved-chain runs:
-  .136 / .121 / .130, all ``not_trusted (not_converged)``; noisy Gaussian .124 / .129,
-  ``not_trusted``). The MMTV <= 0.05 target on every seed is **still not met** on the
-  trimodal (seed 1's surrogate is wrong), the curved chain and the noisy target. The
-  silent seed-1 run had found 2 separated modes (kernel diagnostics ``modes: 2``), which
-  the ``multimodal`` reason refuses; it was not re-run with the final mode finder.
+  curved_chain_5d --methods susp_bo --seeds 0 1 2``, 2026-11-25): trimodal seeds 0 / 1 /
+  2 MMTV **.023** / .188 / .187, all ``not_trusted`` (``multimodal``; seed 2 also
+  ``poor_mixing``) — seed 0 right and refused, seed 1's silent failure now refused; curved
+  chain .136 / .121 / .122, all ``not_trusted`` (``not_converged``; seed 2 also
+  ``multimodal``). Trusted with MMTV > 0.05: **0 of 6** (1 of 6 with the intermediate
+  code). Noisy Gaussian (intermediate code) .124 / .129, ``not_trusted``. The MMTV <= 0.05
+  target on every seed is **still not met** on the trimodal (the surrogate of seeds 1–2
+  misses mass), the curved chain and the noisy target.
 
 Oscillator at 50 evaluations over 10 seeds (susp_bo) vs 9 (PyVBMC): mean .0110 vs
 .0106, median .0091 vs .0102 — a tie. Every other cell of susp_bo is below PyVBMC and
