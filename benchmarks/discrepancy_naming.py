@@ -161,6 +161,8 @@ q = 4; 160 evaluations for the calibration and for the recalibration; load 3–5
     primary_lateral_soft (out)    bef               unexplained (best: bump stop)        8  505
     air_spring_reservoir (in,     bef               named, accepted: lpd 203 → 735,      4 1676
       ratio 3, corner 1 Hz)                         share 5.5 % → 0 %
+    sensor_on_bracket (out)       bef               unexplained (best: bump stop)        2 2231
+    null, data seed 2             160: TRUSTED      consistent                           0 1796
 
 (bef = below_expected_fit: the loop finished — search converged, held-out check ok —
 but the best log L is 300–1 400 nats below what B expects at the truth.) * run before
@@ -172,8 +174,8 @@ gap, 3 mm, is the lower bound of the effect's gap range (every base truth inside
 primary damping 10.00 [9.996, 10.003] kN·s/m).
 
 Scores on the cases that reached the workflow: in library 4/4 right names, out of library
-0/3 false names and 3/3 flagged, null 0 bands (1 data set), accepted augmented models
-better on all bins 4/4. The air-spring case ran with the widened recalibration window:
+0/4 false names and 4/4 flagged, null 0 bands (2 data sets, seeds 1 and 2), accepted
+augmented models better on all bins 4/4. The air-spring case ran with the widened recalibration window:
 its augmented model is **trusted**, every truth inside (ratio 3.00 [2.987, 3.006] for
 3.0, corner 1.00 [0.990, 1.007] Hz for 1.0, primary damping 10.00 [9.998, 10.004]
 kN·s/m). The augmented recalibrations' own verdicts: carbody bending
@@ -187,8 +189,7 @@ and the augmented recalibration is itself **trusted** with every truth inside: p
 vertical damping 10.00 [9.998, 10.004] kN·s/m (truth 10.0), secondary vertical 30.0
 [29.97, 30.01], secondary lateral 45.0 [44.92, 45.01], yaw damper 3.50 [3.497, 3.509]
 MN·s/m, bending 10.00 [9.996, 10.003] Hz, damping ratio 0.020 [0.0199, 0.0202]. Not run
-(time): wheel_out_of_roundness, sensor_on_bracket, sensor_misplaced, a second speed,
-more seeds.
+(time): wheel_out_of_roundness, sensor_misplaced, a second speed, more seeds.
 
 """
 
