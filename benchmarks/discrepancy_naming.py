@@ -175,8 +175,8 @@ primary damping 10.00 [9.996, 10.003] kN·s/m).
 
 Scores on the cases that reached the workflow: in library 4/4 right names, out of library
 0/4 false names and 4/4 flagged, null 0 bands (2 data sets, seeds 1 and 2), accepted
-augmented models better on all bins 4/4. The air-spring case ran with the widened recalibration window:
-its augmented model is **trusted**, every truth inside (ratio 3.00 [2.987, 3.006] for
+augmented models better on all bins 4/4. The air-spring case ran with the widened
+recalibration window: its augmented model is **trusted**, every truth inside (ratio 3.00 [2.987, 3.006] for
 3.0, corner 1.00 [0.990, 1.007] Hz for 1.0, primary damping 10.00 [9.998, 10.004]
 kN·s/m). The augmented recalibrations' own verdicts: carbody bending
 ``not_trusted`` (below_expected_fit 742 nats, at_bound) with the effect right (10.00
