@@ -176,20 +176,20 @@ primary damping 10.00 [9.996, 10.003] kN·s/m).
 Scores on the cases that reached the workflow: in library 4/4 right names, out of library
 0/4 false names and 4/4 flagged, null 0 bands (2 data sets, seeds 1 and 2), accepted
 augmented models better on all bins 4/4. The air-spring case ran with the widened
-recalibration window: its augmented model is **trusted**, every truth inside (ratio 3.00 [2.987, 3.006] for
-3.0, corner 1.00 [0.990, 1.007] Hz for 1.0, primary damping 10.00 [9.998, 10.004]
-kN·s/m). The augmented recalibrations' own verdicts: carbody bending
-``not_trusted`` (below_expected_fit 742 nats, at_bound) with the effect right (10.00
-[10.00, 10.01] Hz) but primary vertical damping pinned at 9.04 kN·s/m (truth 10.0): the
-recalibration window, centred on the ranking's linearised-rig refit (5.3 kN·s/m),
-excluded the truth; the window now also reaches the base calibration's MAP (10.0).
-Re-run of that diagnose with this version (``susp-bo diagnose OUT/carbody_bending/result
---out D --budget 160``, 2026-11-25): named, accepted (lpd 6.5 → 757, share 2.0 % → 0 %),
-and the augmented recalibration is itself **trusted** with every truth inside: primary
-vertical damping 10.00 [9.998, 10.004] kN·s/m (truth 10.0), secondary vertical 30.0
-[29.97, 30.01], secondary lateral 45.0 [44.92, 45.01], yaw damper 3.50 [3.497, 3.509]
-MN·s/m, bending 10.00 [9.996, 10.003] Hz, damping ratio 0.020 [0.0199, 0.0202]. Not run
-(time): wheel_out_of_roundness, sensor_misplaced, a second speed, more seeds.
+recalibration window: its augmented model is **trusted**, every truth inside (ratio 3.00
+[2.987, 3.006] for 3.0, corner 1.00 [0.990, 1.007] Hz for 1.0, primary damping 10.00 [9.998,
+10.004] kN·s/m). The augmented recalibrations' own verdicts: carbody bending ``not_trusted``
+(below_expected_fit 742 nats, at_bound) with the effect right (10.00 [10.00, 10.01] Hz) but
+primary vertical damping pinned at 9.04 kN·s/m (truth 10.0): the recalibration window,
+centred on the ranking's linearised-rig refit (5.3 kN·s/m), excluded the truth; the window
+now also reaches the base calibration's MAP (10.0). Re-run of that diagnose with this
+version (``susp-bo diagnose OUT/carbody_bending/result --out D --budget 160``, 2026-11-25):
+named, accepted (lpd 6.5 → 757, share 2.0 % → 0 %), and the augmented recalibration is
+itself **trusted** with every truth inside: primary vertical damping 10.00 [9.998, 10.004]
+kN·s/m (truth 10.0), secondary vertical 30.0 [29.97, 30.01], secondary lateral 45.0 [44.92,
+45.01], yaw damper 3.50 [3.497, 3.509] MN·s/m, bending 10.00 [9.996, 10.003] Hz, damping
+ratio 0.020 [0.0199, 0.0202]. Not run (time): wheel_out_of_roundness, sensor_misplaced, a
+second speed, more seeds.
 
 """
 
