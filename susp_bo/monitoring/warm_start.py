@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo.calibration.design import check_bounds, space_filling_design
+from susp_bo.monitoring.alarms import trust
 
 RESULT_FILE = "result.json"
 SAMPLES_FILE = "posterior_samples.npy"
@@ -139,8 +140,7 @@ def plan_warm_start(
     if not (result_file.is_file() and samples_file.is_file()):
         return None
     payload = json.loads(result_file.read_text())
-    reliability = payload.get("reliability")
-    if not isinstance(reliability, dict) or reliability.get("verdict") != "trusted":
+    if not trust(payload)[0]:  # the monitoring's one reading of the reliability contract
         return None
     if list(payload.get("parameters", [])) != list(names):
         return None
