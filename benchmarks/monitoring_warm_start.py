@@ -85,7 +85,7 @@ from susp_bo.calibration.posterior import marginal_density
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.discrepancy.problem import LinearSimulator
 from susp_bo.discrepancy.scenarios import synthesize_problem
-from susp_bo.monitoring.warm_start import warm_start_design
+from susp_bo.monitoring.warm_start import warm_design_shape, warm_start_design
 from susp_bo.rig.spec import load_rig_spec
 
 NAMES = ("secondary_vertical_damping", "yaw_damper_damping")
@@ -209,14 +209,18 @@ def paired_main(args: argparse.Namespace) -> None:
     print(f"reference (cold, budget {3 * args.budget}, design 32): {reference.n_evaluations} "
           f"evaluations, {verdict}, 95 %: {interval}", flush=True)  # fmt: skip
     rows = []
+    # the monitor's warm design (plan_warm_start) unless --design / --global-points say
+    shape = warm_design_shape(len(NAMES), 10, local_phase=True)
+    size_warm = args.design or shape[0]
+    spread = shape[1] if args.global_points is None else args.global_points
     for seed in args.seeds:
         variants = [("cold", n, ego) for n in args.cold_designs for ego in (0.4, 0.0)]
-        for kind, size, ego in [*variants, ("warm", args.design, 0.0)]:
+        for kind, size, ego in [*variants, ("warm", size_warm, 0.0)]:
             design = None
             if kind == "warm":
                 design = warm_start_design(
                     previous.samples, bounds, size=size - 1, seed=5 + seed,
-                    widen=args.widen, global_points=args.global_points,
+                    widen=args.widen, global_points=spread,
                 )  # fmt: skip
                 design = np.vstack([np.median(previous.samples, 0)[None], design])
             result, verdict, codes = run(second, args.budget, size, design, seed, ego)
@@ -248,8 +252,18 @@ def main() -> None:
     parser.add_argument("--cold", type=int, nargs="*", help="cold budgets (evaluations)")
     parser.add_argument("--warm", type=int, nargs="*", help="warm budgets (evaluations)")
     parser.add_argument("--widen", type=float, default=3.0, help="warm box half-width factor")
-    parser.add_argument("--design", type=int, default=10, help="warm design size")
-    parser.add_argument("--global-points", type=int, default=3, help="warm points over C_w")
+    parser.add_argument(
+        "--design",
+        type=int,
+        default=None,
+        help="warm design size (default: 10; paired: the monitor's, 6 for q = 2)",
+    )
+    parser.add_argument(
+        "--global-points",
+        type=int,
+        default=None,
+        help="warm points over C_w (default: 3; paired: the monitor's, 1)",
+    )
     parser.add_argument("--cache", type=Path, help="folder caching the two reference posteriors")
     parser.add_argument("--error", choices=("unpaired", "paired"), default="unpaired",
                         help="paired: B per run against its own track, with the local phase; "
@@ -296,10 +310,10 @@ def main() -> None:
         design = warm_start_design(
             previous,
             bounds,
-            size=min(args.design, budget),
+            size=min(args.design or 10, budget),
             seed=5,
             widen=args.widen,
-            global_points=args.global_points,
+            global_points=3 if args.global_points is None else args.global_points,
         )
         result = calibrate(second, bounds, NAMES, settings(budget), progress=False, design=design)
         rows.append(("warm", budget, mmtv(result.samples, reference, bounds)))

@@ -253,6 +253,7 @@ def monitor(
                 bounds[cid],
                 configs[cid].budget.initial_design,
                 configs[cid].seeds.calibration,
+                local_phase=configs[cid].search.local,
             )
         how = f"warm start from {start.source}" if start is not None else "cold start"
         _say(progress, f"calibrating {cid} ({status[cid]}, {campaign.n_runs} runs, {how})")

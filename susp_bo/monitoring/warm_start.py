@@ -16,11 +16,15 @@ surrogate is accurate; what is saved is the design spent on empty regions.
 vehicle: it reads the previous campaign's results folder and, only when that
 calibration was *trusted* (an untrusted posterior is no evidence of where the
 parameters are) and calibrated the same parameters, returns a :class:`WarmStart`:
-the previous posterior median first, then :func:`warm_start_design` (5 q points in
-all, the cold design's size at most). With the local phase on (``[search] local``)
-the study goes from that design straight to the local phase
-(``run_study(local_after_design=True)``): the global EGO batches are what a warm
-design makes redundant. The reliability verdict of the new campaign
+the previous posterior median first, then :func:`warm_start_design` (the cold
+design's size at most). With the local phase on (``[search] local``) the study goes
+from that design straight to the local phase (``run_study(local_after_design=True)``):
+the global EGO batches are what a warm design makes redundant, and the design only
+seeds the surrogate near the previous posterior: 3 q points, 1 of them over all of
+C_w. Without the local phase the surrogate alone must find the new optimum: 5 q
+points, 3 over C_w. Measured (q = 2, paired B, ``benchmarks/monitoring_warm_start.py``):
+18 evaluations against 54 for the default cold start, 0.33 of its simulator runs;
+with 4 or 5 points some seeds needed 28–29. The reliability verdict of the new campaign
 is computed exactly as for a cold start, so a part that changed far more than
 expected shows up as ``not_converged``, ``below_expected_fit`` or
 ``surrogate_misfit``, never as a
@@ -59,8 +63,8 @@ def warm_start_design(
     Args:
         previous: (n x q) posterior draws of the previous campaign (physical units).
         bounds: (2 x q) admissible set C_w.
-        size: design points (>= global_points + 2); 10 for q = 2 measured best in
-            ``benchmarks/monitoring_warm_start.py`` (6 was too few to fit the surrogate).
+        size: design points (>= global_points + 2); :func:`warm_design_shape` gives
+            the sizes measured best in ``benchmarks/monitoring_warm_start.py``.
         seed: design seed.
         widen: half-width of the local box in units of the previous 95 % half-width.
         min_width: smallest local box width, as a fraction of each C_w range.
@@ -84,6 +88,17 @@ def warm_start_design(
         return local
     spread = space_filling_design(global_points, b, seed + 1)
     return np.vstack([local, spread])
+
+
+def warm_design_shape(q: int, cold_design_size: int, *, local_phase: bool) -> tuple[int, int]:
+    """(points, of which over all of C_w) of a warm design for q parameters.
+
+    With the local phase 3 q points, 1 over C_w; without it 5 q, 3 over C_w; never more
+    than the cold design. The second number is negative when the design is too small to
+    hold the median and a local box (then there is no warm start).
+    """
+    size = min((3 if local_phase else 5) * q, int(cold_design_size))
+    return size, min(1 if local_phase else 3, size - 3)
 
 
 @dataclass(frozen=True)
@@ -120,6 +135,8 @@ def plan_warm_start(
     bounds: np.ndarray,
     cold_design_size: int,
     seed: int,
+    *,
+    local_phase: bool = False,
 ) -> WarmStart | None:
     """The warm start from a previous campaign's results folder, or None (cold start).
 
@@ -131,6 +148,11 @@ def plan_warm_start(
         bounds: (2 x q) admissible set C_w.
         cold_design_size: the cold start's design size (the warm design is not larger).
         seed: design seed.
+        local_phase: the study runs the local phase right after the design
+            (``[search] local``): the design only has to seed the surrogate near the
+            previous posterior, so it is 3 q points with 1 over all of C_w; without it
+            5 q points with 3 over C_w (the surrogate alone must find the new optimum).
+            Sizes measured in ``benchmarks/monitoring_warm_start.py`` (q = 2).
 
     Returns:
         None when the previous calibration is missing, not trusted, of other parameters
@@ -147,8 +169,7 @@ def plan_warm_start(
     draws = np.load(samples_file)
     b = check_bounds(bounds)
     q = b.shape[1]
-    size = min(5 * q, int(cold_design_size))
-    global_points = min(3, size - 3)
+    size, global_points = warm_design_shape(q, cold_design_size, local_phase=local_phase)
     if global_points < 0 or draws.ndim != 2 or draws.shape[1] != q:
         return None
     centre = np.clip(np.median(draws, axis=0), b[0], b[1])

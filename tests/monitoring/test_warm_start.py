@@ -99,6 +99,13 @@ def test_the_plan_starts_at_the_previous_median_and_only_from_a_trusted_calibrat
     # the design never exceeds the cold design's size
     small = plan_warm_start(trusted, "x", NAMES, bounds, cold_design_size=6, seed=4)
     assert small is not None and small.design.shape == (6, 2) and small.global_points == 3
+    # with the local phase after the design: 3 q points, one of them over all of C_w
+    local = plan_warm_start(trusted, "x", NAMES, bounds, 26, seed=4, local_phase=True)
+    assert local is not None and local.design.shape == (6, 2) and local.global_points == 1
+    np.testing.assert_allclose(local.design[0], np.median(draws, axis=0))
+    inner = local.design[1:-1]
+    assert np.all(np.abs(inner - np.median(draws, 0)) <= half + 1e-9)
+    assert not np.all(np.abs(local.design[-1] - np.median(draws, 0)) <= half + 1e-9)
     # no warm start: not trusted, no verdict, other parameters, unfinished, too small a design
     assert plan_warm_start(_finished(tmp_path / "b", "not_trusted", NAMES, draws), "x", NAMES,
                            bounds, 26, 4) is None  # fmt: skip
