@@ -53,7 +53,6 @@ import argparse
 import dataclasses
 import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -115,10 +114,13 @@ def refit_window(
 
 def _study_recalibration(
     study: Any, out: Path, budget: int | None, progress: bool, base: Any
-) -> Any:
-    """``recalibrate(best)``: the study loop on the augmented rig (PyBullet); ``base`` is the
-    base calibration's fit (:func:`_fit_from_result`), whose MAP widens the window and is
-    a second start."""
+) -> tuple[Any, list[dict[str, Any] | None]]:
+    """``(recalibrate, verdicts)``: ``recalibrate(best)`` runs the study loop on the
+    augmented rig (PyBullet); ``base`` is the base calibration's fit
+    (:func:`_fit_from_result`), whose MAP widens the window and is a second start. Each
+    call appends the recalibration's own reliability verdict (a dict, or None) to
+    ``verdicts``."""
+    from susp_bo.calibration.design import default_design_size
     from susp_bo.calibration.loop import calibrate
     from susp_bo.calibration.study import (
         STORE_NAME,
@@ -131,6 +133,8 @@ def _study_recalibration(
     from susp_bo.discrepancy.fitting import Fit
     from susp_bo.execution import make_executor
     from susp_bo.store import EvaluationStore
+
+    verdicts: list[dict[str, Any] | None] = []
 
     def recalibrate(best: Any) -> Fit:
         effect = get_effect(best.effect)
@@ -160,7 +164,8 @@ def _study_recalibration(
                 max_evaluations=budget,
                 initial_design_size=min(budget, settings.initial_design_size or budget),
             )
-        if (settings.initial_design_size or 10) <= len(starts):  # a tiny --budget: one start
+        design_size = settings.initial_design_size or default_design_size(len(names))
+        if design_size <= len(starts):  # a tiny --budget: one start
             starts = starts[:1]
         print(f"susp-bo diagnose: recalibrating with {best.effect} ({names})", file=sys.stderr)
         config = study.config.executor
@@ -181,6 +186,8 @@ def _study_recalibration(
                 expected_at_truth=expected_log_likelihood_at_truth(study),
             )
         summary = result.summary.to_dict()
+        verdict = None if result.reliability is None else json_ready(result.reliability.to_dict())
+        verdicts.append(verdict)
         span = bounds[1] - bounds[0]
         sd = np.maximum(np.asarray(summary["sd"], dtype=np.float64), 1e-9 * span)
         (folder / "result.json").write_text(
@@ -196,9 +203,7 @@ def _study_recalibration(
                     "n_evaluations": int(result.n_evaluations),
                     **json_ready(summary),
                     # the recalibration's own verdict (its budget is often small: say so)
-                    "reliability": None
-                    if result.reliability is None
-                    else json_ready(result.reliability.to_dict()),
+                    "reliability": verdict,
                 },
                 indent=2,
             )
@@ -214,7 +219,7 @@ def _study_recalibration(
             n_evaluations=int(result.n_evaluations),
         )
 
-    return recalibrate
+    return recalibrate, verdicts
 
 
 def _not_trusted_document(
@@ -312,25 +317,23 @@ def run_diagnose(args: argparse.Namespace) -> int:
     )
     fast = LinearSimulator() if kind == "pybullet" else simulator
     base_fit = _fit_from_result(study, payload)
-    started = time.time()
+    recalibrate, verdicts = (
+        _study_recalibration(study, out, budget, progress=True, base=base_fit)
+        if kind == "pybullet"
+        else (None, [])
+    )
     report = run_workflow(
         problem,
         simulator,
         base_fit,
         WorkflowSettings(seed=study.config.seeds.calibration, polish_base=kind == "linear"),
         fast=fast,
-        recalibrate=_study_recalibration(study, out, budget, progress=True, base=base_fit)
-        if kind == "pybullet"
-        else None,
+        recalibrate=recalibrate,
     )
     document = report.to_dict()
     document.update(result_dir=str(result_dir), rig=study.spec.name)
-    augmented_result = out / "augmented" / "result.json"
-    if augmented_result.is_file() and augmented_result.stat().st_mtime >= started:
-        # the model recalibrated by this run: its own reliability verdict
-        document["augmented_reliability"] = json.loads(augmented_result.read_text()).get(
-            "reliability"
-        )
+    if verdicts:  # the model recalibrated by this run: its own reliability verdict
+        document["augmented_reliability"] = verdicts[-1]
     document["calibration_reliability"] = reliability.to_dict()
     if not reliability.fit_finished:  # --force: findings kept aside, labelled, never the answer
         forced = document

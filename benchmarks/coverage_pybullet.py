@@ -1,0 +1,195 @@
+"""Simulation-based calibration on PyBullet data: the demo's study, truths from the prior.
+
+The PyBullet version of :mod:`coverage` (whose experiments use the linearised rig). Each
+experiment e:
+
+1. draws a truth w_e uniformly on C_w of the demo's q = 7 parameters;
+2. synthesises ν = 3 measured runs with the PyBullet rig, as ``susp-bo synth`` /
+   ``susp-bo demo`` do (:func:`susp_bo.data.synthetic.synthesize_runs`, white sensor
+   noise 0.005 m/s², data seed from e);
+3. calibrates with :func:`susp_bo.calibration.study.run_study` and the demo's study
+   (:func:`susp_bo.commands.demo.demo_config`: paired B, local phase, budget 200, design
+   40, batches of 4), every simulator call a PyBullet run;
+4. scores the posterior draws against the truth as :mod:`coverage` does (quantile, z,
+   95 % interval), with the study's own verdict, and evaluates log L at the truth on the
+   same tracks (in a separate store, so a resumed study never sees the truth).
+
+Each experiment is a results folder ``OUT/experiment_NNN`` (resumable: a killed study
+resumes from its store) and a record ``OUT/experiments/NNN.json`` written when it ends;
+``OUT/coverage.json`` and ``OUT/ranks.png`` are rebuilt from all records after each one.
+Several processes may share ``OUT`` with disjoint ``--first`` ranges.
+
+    python benchmarks/coverage_pybullet.py --out OUT --experiments 8 [--first 0]
+
+About 12–15 min an experiment on one core (600 PyBullet runs of 16 s at 83.33 m/s).
+Measured results: see the README ("Simulation-based calibration") and issue 10's notes.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+from coverage import aggregate, rank_figure  # noqa: E402
+
+from susp_bo.calibration.study import (  # noqa: E402
+    prepare_study,
+    run_study,
+    store_fingerprint,
+    study_evaluator,
+)
+from susp_bo.commands.demo import DEMO_RIG, demo_config  # noqa: E402
+from susp_bo.data.measured import save_run  # noqa: E402
+from susp_bo.data.synthetic import synthesize_runs  # noqa: E402
+from susp_bo.execution import make_executor  # noqa: E402
+from susp_bo.rig.spec import load_rig_spec  # noqa: E402
+from susp_bo.store import EvaluationStore  # noqa: E402
+
+NU = 3
+NOISE_M_S2 = 0.005  # the demo's sensor noise
+
+
+def truth_of(seed: int, experiment: int, bounds: np.ndarray) -> np.ndarray:
+    """(q,) truth of one experiment, uniform on C_w (the prior)."""
+    rng = np.random.default_rng([seed, experiment, 11])
+    return bounds[0] + rng.uniform(size=bounds.shape[1]) * (bounds[1] - bounds[0])
+
+
+def truth_log_likelihood(config, truth: np.ndarray) -> float:
+    """log L at the truth on the study's tracks, through a throw-away store."""
+    study = prepare_study(config, resume=True)
+    with tempfile.TemporaryDirectory() as scratch:
+        store = EvaluationStore(Path(scratch) / "truth.sqlite", store_fingerprint(study))
+        with store, make_executor(workers=0) as executor:
+            evaluate = study_evaluator(study, store, executor, progress=False)
+            return float(np.asarray(evaluate(truth[None, :]))[0])
+
+
+def run_experiment(out: Path, seed: int, experiment: int, workers: int) -> dict[str, Any]:
+    """Synthesise, calibrate and score one experiment; returns its record."""
+    started = time.perf_counter()
+    spec = load_rig_spec(DEMO_RIG)
+    names, bounds = spec.calibration_names, spec.calibration_bounds
+    truth = truth_of(seed, experiment, bounds)
+    folder = out / f"experiment_{experiment:03d}"
+    data = folder / "data"
+    if not any(data.glob("run_*.h5")):
+        data.mkdir(parents=True, exist_ok=True)
+        data_seed = int(np.random.SeedSequence([seed, experiment, 13]).generate_state(1)[0])
+        runs = synthesize_runs(
+            spec, dict(zip(names, truth.tolist())), nu=NU, seed=data_seed, noise_m_s2=NOISE_M_S2
+        )
+        for index, run in enumerate(runs):
+            save_run(run, data / f"run_{index:03d}.h5")
+    config = demo_config(folder, smoke=False, seed=seed)
+    config = dataclasses.replace(
+        config, executor=dataclasses.replace(config.executor, workers=workers)
+    )
+    payload, result = run_study(config, resume=(folder / "evaluations.sqlite").exists())
+    draws = result.draws.reshape(-1, len(names))
+    quantile = np.mean(draws < truth[None, :], axis=0)
+    mean, sd = draws.mean(axis=0), draws.std(axis=0)
+    interval = np.asarray(payload["interval95"])
+    tailed = np.asarray(payload["equal_tailed95"])
+    reliability = payload["reliability"]
+    evidence = reliability.get("evidence", {})
+    return {
+        "experiment": experiment,
+        "truth": truth.tolist(),
+        "quantile": quantile.tolist(),
+        "z": ((mean - truth) / sd).tolist(),
+        "mean": mean.tolist(),
+        "sd": sd.tolist(),
+        "interval95": interval.tolist(),
+        "inside95": ((interval[:, 0] <= truth) & (truth <= interval[:, 1])).tolist(),
+        "inside_equal_tailed95": ((tailed[:, 0] <= truth) & (truth <= tailed[:, 1])).tolist(),
+        "truth_log_l": truth_log_likelihood(config, truth),
+        "best_log_l": float(payload["best_log_likelihood"]),
+        "expected_log_l_at_truth": list(evidence.get("expected_at_truth") or [None, None]),
+        "r_hat_max": float(max(payload["mcmc"]["r_hat"])),
+        "ess_min": float(min(payload["mcmc"]["ess"])),
+        "check": (payload.get("surrogate_check") or {}).get("verdict"),
+        "verdict": reliability["verdict"],
+        "reasons": [r["code"] for r in reliability.get("reasons", [])],
+        "n_evaluations": int(payload["n_evaluations"]),
+        "n_simulations": int(payload["n_simulations"]),
+        "seconds": time.perf_counter() - started,
+    }
+
+
+def summarise(out: Path, names: tuple[str, ...]) -> dict[str, Any] | None:
+    """coverage.json and ranks.png from every finished record in ``out``."""
+    records = [json.loads(p.read_text()) for p in sorted((out / "experiments").glob("*.json"))]
+    if not records:
+        return None
+    summary = aggregate(records, names)
+    trusted = [r for r in records if r["verdict"] == "trusted"]
+    summary["verdicts"] = {
+        "trusted": len(trusted),
+        "of": len(records),
+        "reasons": sorted({c for r in records for c in r["reasons"]}),
+        "trusted_inside95": int(sum(sum(r["inside95"]) for r in trusted)),
+        "trusted_intervals": len(trusted) * len(names),
+    }
+    (out / "coverage.json").write_text(json.dumps(summary, indent=2))
+    rank_figure(records, names, out / "ranks.png")
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True, help="work folder (resumable)")
+    parser.add_argument("--experiments", type=int, default=8, help="experiments to run")
+    parser.add_argument("--first", type=int, default=0, help="index of the first experiment")
+    parser.add_argument("--seed", type=int, default=0, help="master seed of truths and data")
+    parser.add_argument("--workers", type=int, default=0, help="simulator processes (0: here)")
+    args = parser.parse_args(argv)
+    if args.experiments < 1 or args.first < 0 or args.workers < 0:
+        print("coverage_pybullet: --experiments must be >= 1, --first and --workers >= 0",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    names = load_rig_spec(DEMO_RIG).calibration_names
+    (args.out / "experiments").mkdir(parents=True, exist_ok=True)
+    for experiment in range(args.first, args.first + args.experiments):
+        record_file = args.out / "experiments" / f"{experiment:03d}.json"
+        if record_file.exists():
+            continue
+        print(f"coverage_pybullet: experiment {experiment}", file=sys.stderr, flush=True)
+        record = run_experiment(args.out, args.seed, experiment, args.workers)
+        record_file.write_text(json.dumps(record, indent=1))
+        print(
+            f"coverage_pybullet: experiment {experiment}: {record['verdict']} "
+            f"{record['reasons']}, inside {sum(record['inside95'])}/{len(names)}, "
+            f"z {np.round(record['z'], 2).tolist()}, truth log L - best "
+            f"{record['truth_log_l'] - record['best_log_l']:.1f}, {record['seconds']:.0f} s",
+            file=sys.stderr,
+            flush=True,
+        )
+        summary = summarise(args.out, names)
+        if summary is not None:
+            pooled = summary["pooled"]
+            print(
+                f"coverage_pybullet: {summary['n_experiments']} experiments: inside "
+                f"{pooled['inside95']}/{pooled['of']} (binomial {pooled['binomial_range']}), "
+                f"z rms {pooled['z_rms']:.2f}, KS p {pooled['ks_p']:.3g}, trusted "
+                f"{summary['verdicts']['trusted']}/{summary['n_experiments']}",
+                file=sys.stderr,
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
