@@ -42,7 +42,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-from coverage import aggregate, rank_figure  # noqa: E402
+from sbc_summary import aggregate, rank_figure  # noqa: E402
 
 from susp_bo.calibration.study import (  # noqa: E402
     prepare_study,
