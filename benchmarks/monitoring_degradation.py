@@ -47,6 +47,13 @@ the 2-core machine):
 - evaluations per campaign: cold first campaigns 63 (TRAIN-A) and 80 (TRAIN-B); warm ones
   19–23 on the healthy TRAIN-B, 22–80 on the wearing TRAIN-A (median 63: the damper moves
   2.1 kN·s/m a month, hundreds of posterior sd, so the local phase has further to go).
+
+The same with the monitor's smaller warm design (session 6: 3 q points with the local
+phase, see :func:`susp_bo.monitoring.warm_start.warm_design_shape`; 1 546 PyBullet runs,
+1 519 s wall beside three other jobs): all 20 ``trusted``, 36 of 40 intervals hold the
+truth, alarm at campaign 6 (delay 0), no false alarm; evaluations: cold first campaigns 63
+(TRAIN-A) and 71 (TRAIN-B); warm ones 15–19 on the healthy TRAIN-B (was 19–23), 26–75 on
+the wearing TRAIN-A.
 """
 
 from __future__ import annotations
