@@ -34,14 +34,17 @@ Measured (2026-11-25, seed 7, 40 experiments, ν = 3, noise 0.01 m/s², 62 s):
 
 (30 truths from the inner 80 % of C_w, seed 7: the same picture, secondary vertical
 damping score mean −0.33, t −2.0.) Reading: B's variance is right where the information
-is (0.90–1.22), but its mean model m (the second-order bias −var of the log of a noisy
-Welch average) leaves a bias in the bands that inform the secondary vertical damper: the
-maximum of log L sits ≈ 0.4 sd from the truth on average, which is what the SBC's
-"ranks lean high" and that damper's KS p of 0.053 show. The secondary lateral damper's
-overconfidence in the SBC (z rms 1.30 with the loop, 1.32 with the exact-likelihood
-Laplace posterior) does NOT appear at first order (one-step z rms 1.05): it comes from
-beyond the linearisation (the nonlinear maximum, or the few bands with few Welch averages
-where the log-χ² is far from Gaussian). Open for issue 10.
+is (0.90–1.22). The secondary vertical damper's score mean −0.41 (t = −3.0) is the
+largest of seven (p ≈ 0.02 that one of seven reaches |t| ≥ 3 by chance), so it is a
+suspect, not an established bias: the raw residuals' mean per channel and band, over
+the same 120 runs, has no cell with |t| > 4 (10 × 48 cells), and adding the next order
+of the log-χ² mean (T/6 − 3V²/8 with M = 1/R_bb averages) changed no figure in the
+table. If real, the maximum of log L sits ≈ 0.4 sd from the truth for that damper,
+which would match its SBC KS p of 0.053 and the pooled ranks leaning high. The
+secondary lateral damper's overconfidence in the SBC (z rms 1.30 with the loop, 1.32
+with the exact-likelihood Laplace posterior) does NOT appear at first order (one-step
+z rms 1.05): it comes from beyond the linearisation (the nonlinear maximum, or bands
+with few Welch averages where the log-χ² is far from Gaussian). Open for issue 10.
 """
 
 from __future__ import annotations
