@@ -144,7 +144,7 @@ def summarise(out: Path, names: tuple[str, ...]) -> dict[str, Any] | None:
         "trusted_intervals": len(trusted) * len(names),
     }
     (out / "coverage.json").write_text(json.dumps(summary, indent=2))
-    rank_figure(records, names, out / "ranks.png")
+    rank_figure(records, names, out / "ranks.png", source="PyBullet data, the demo's study")
     return summary
 
 

@@ -115,8 +115,11 @@ def aggregate(records: list[dict[str, Any]], names: tuple[str, ...]) -> dict[str
     }
 
 
-def rank_figure(records: list[dict[str, Any]], names: tuple[str, ...], path: Path) -> None:
-    """Histograms of the truth's posterior quantile per parameter and pooled (PNG)."""
+def rank_figure(
+    records: list[dict[str, Any]], names: tuple[str, ...], path: Path, source: str = ""
+) -> None:
+    """Histograms of the truth's posterior quantile per parameter and pooled (PNG);
+    ``source`` names the data in the title (e.g. "PyBullet data")."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -156,6 +159,9 @@ def rank_figure(records: list[dict[str, Any]], names: tuple[str, ...], path: Pat
         ax.set_title(f"{name}\nKS p = {p:.2g}", fontsize=8)
         ax.set_xlim(0, 1)
         ax.tick_params(labelsize=7)
+        ax.set_xlabel("truth's posterior quantile", fontsize=7)
+        ax.set_ylabel("experiments" if name != "pooled" else "parameters x experiments",
+                      fontsize=7)  # fmt: skip
     for ax in axes.ravel()[len(panels) :]:
         ax.axis("off")
     kind = (
@@ -167,7 +173,7 @@ def rank_figure(records: list[dict[str, Any]], names: tuple[str, ...], path: Pat
     )
     fig.suptitle(
         f"SBC rank histograms: truth's posterior quantile, {n} experiments "
-        f"({kind}; grey: 95 % band of a uniform histogram)",
+        f"({kind}{'; ' + source if source else ''}; grey: 95 % band of a uniform histogram)",
         fontsize=9,
     )
     fig.tight_layout()
