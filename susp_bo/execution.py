@@ -135,15 +135,17 @@ def _single_threaded_worker(parent_pid: int | None = None) -> None:
 
 
 _RESTART_TIMEOUT_S = 60.0
+_RESTART_GRACE_S = 2.0  # the manager thread's own terminate usually ends within it
 
 
-def _kill_workers(pool: ProcessPoolExecutor) -> None:
-    """SIGKILL every live worker process of ``pool`` (CPython keeps them in ``_processes``)."""
+def _kill_workers(processes: dict[int, Any] | None) -> None:
+    """SIGKILL every live worker process in ``processes`` (CPython's ``pid -> Process``
+    dict of a pool, shared by the pool and its manager thread)."""
     try:
-        processes = list((getattr(pool, "_processes", None) or {}).values())
+        alive = list((processes or {}).values())
     except RuntimeError:  # the manager thread changed the dict while it was copied
         return
-    for process in processes:
+    for process in alive:
         if process.is_alive():
             process.kill()
 
@@ -183,13 +185,23 @@ class RestartableProcessPool(Executor):
         until the manager thread has finished.
         """
         old = self._pool
-        old.shutdown(wait=False, cancel_futures=True)
+        # the worker dict, taken before shutdown: shutdown sets the pool's _processes to
+        # None while the manager thread keeps joining the workers in this same dict (a
+        # kill loop reading pool._processes afterwards found nothing and left a worker
+        # blocked on the call queue, and the interpreter's exit hung joining it)
         manager = getattr(old, "_executor_manager_thread", None)
-        deadline = time.monotonic() + _RESTART_TIMEOUT_S
-        while manager is not None and manager.is_alive() and time.monotonic() < deadline:
-            _kill_workers(old)
+        processes = getattr(manager, "processes", None) or getattr(old, "_processes", None)
+        old.shutdown(wait=False, cancel_futures=True)
+        started = time.monotonic()
+        while manager is not None and manager.is_alive():
+            waited = time.monotonic() - started
+            if waited > _RESTART_TIMEOUT_S:
+                break
+            if waited > _RESTART_GRACE_S:  # not finished on its own: a worker escaped
+                _kill_workers(processes)
             manager.join(0.2)
-        _kill_workers(old)
+        if manager is None or not manager.is_alive():
+            _kill_workers(processes)
         self._pool = self._new_pool()
         self.restarts += 1
 
