@@ -93,7 +93,7 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 from fast_path import FastPathProblem, Options, demo_settings  # noqa: E402
-from sbc_summary import aggregate, rank_figure  # noqa: E402
+from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from susp_bo.calibration.loop import (  # noqa: E402
@@ -205,10 +205,6 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         on_iteration=report,
     )
     draws = result.draws.reshape(-1, len(names))
-    quantile = np.mean(draws < truth[None, :], axis=0)
-    mean, sd = draws.mean(axis=0), draws.std(axis=0)
-    interval = np.asarray(result.summary.interval95)
-    tailed = np.asarray(result.summary.equal_tailed95)
     truth_log_l = problem.log_l(truth)
     expected = (
         paired_expected_log_likelihood(problem.error, problem.measured)
@@ -219,14 +215,7 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
     best = int(np.flatnonzero(finite)[np.argmax(result.y[finite])])
     return {
         "experiment": experiment,
-        "truth": truth.tolist(),
-        "quantile": quantile.tolist(),
-        "z": ((mean - truth) / sd).tolist(),
-        "mean": mean.tolist(),
-        "sd": sd.tolist(),
-        "interval95": interval.tolist(),
-        "inside95": ((interval[:, 0] <= truth) & (truth <= interval[:, 1])).tolist(),
-        "inside_equal_tailed95": ((tailed[:, 0] <= truth) & (truth <= tailed[:, 1])).tolist(),
+        **score_draws(draws, truth, result.summary.interval95, result.summary.equal_tailed95),
         "truth_log_l": truth_log_l,
         "best_log_l": float(result.y[best]),
         "best_w": result.X[best].tolist(),

@@ -62,7 +62,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-from sbc_summary import aggregate, rank_figure  # noqa: E402
+from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 
 from susp_bo.calibration.study import (  # noqa: E402
     prepare_study,
@@ -119,22 +119,11 @@ def run_experiment(out: Path, seed: int, experiment: int, workers: int) -> dict[
     )
     payload, result = run_study(config, resume=(folder / "evaluations.sqlite").exists())
     draws = result.draws.reshape(-1, len(names))
-    quantile = np.mean(draws < truth[None, :], axis=0)
-    mean, sd = draws.mean(axis=0), draws.std(axis=0)
-    interval = np.asarray(payload["interval95"])
-    tailed = np.asarray(payload["equal_tailed95"])
     reliability = payload["reliability"]
     evidence = reliability.get("evidence", {})
     return {
         "experiment": experiment,
-        "truth": truth.tolist(),
-        "quantile": quantile.tolist(),
-        "z": ((mean - truth) / sd).tolist(),
-        "mean": mean.tolist(),
-        "sd": sd.tolist(),
-        "interval95": interval.tolist(),
-        "inside95": ((interval[:, 0] <= truth) & (truth <= interval[:, 1])).tolist(),
-        "inside_equal_tailed95": ((tailed[:, 0] <= truth) & (truth <= tailed[:, 1])).tolist(),
+        **score_draws(draws, truth, payload["interval95"], payload["equal_tailed95"]),
         "truth_log_l": truth_log_likelihood(config, truth),
         "best_log_l": float(payload["best_log_likelihood"]),
         "expected_log_l_at_truth": list(evidence.get("expected_at_truth") or [None, None]),

@@ -17,6 +17,34 @@ import numpy as np
 from scipy import stats
 
 
+def score_draws(
+    draws: np.ndarray, truth: np.ndarray, interval95: np.ndarray, equal_tailed95: np.ndarray
+) -> dict[str, Any]:
+    """The per-parameter fields of an experiment record.
+
+    Args:
+        draws: (n x q) posterior draws; truth: (q,) true parameters;
+        interval95, equal_tailed95: (q x 2) the result's 95 % intervals.
+
+    Returns:
+        ``truth``, ``quantile``, ``z``, ``mean``, ``sd``, ``interval95``, ``inside95`` and
+        ``inside_equal_tailed95``, as lists (JSON-ready).
+    """
+    interval = np.asarray(interval95, dtype=np.float64)
+    tailed = np.asarray(equal_tailed95, dtype=np.float64)
+    mean, sd = draws.mean(axis=0), draws.std(axis=0)
+    return {
+        "truth": truth.tolist(),
+        "quantile": np.mean(draws < truth[None, :], axis=0).tolist(),
+        "z": ((mean - truth) / sd).tolist(),
+        "mean": mean.tolist(),
+        "sd": sd.tolist(),
+        "interval95": interval.tolist(),
+        "inside95": ((interval[:, 0] <= truth) & (truth <= interval[:, 1])).tolist(),
+        "inside_equal_tailed95": ((tailed[:, 0] <= truth) & (truth <= tailed[:, 1])).tolist(),
+    }
+
+
 def _binomial_range(n: int, p: float = 0.95) -> tuple[int, int]:
     lo, hi = stats.binom.interval(0.95, n, p)
     return int(lo), int(hi)
