@@ -200,8 +200,7 @@ class RestartableProcessPool(Executor):
             if waited > _RESTART_GRACE_S:  # not finished on its own: a worker escaped
                 _kill_workers(processes)
             manager.join(0.2)
-        if manager is None or not manager.is_alive():
-            _kill_workers(processes)
+        _kill_workers(processes)
         self._pool = self._new_pool()
         self.restarts += 1
 
