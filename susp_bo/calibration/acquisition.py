@@ -38,11 +38,13 @@ def propose_ei_batch(
     seed: int,
     num_restarts: int = 6,
     raw_samples: int = 256,
+    box: torch.Tensor | None = None,
+    best_f: float | None = None,
 ) -> tuple[torch.Tensor, float]:
     """Joint batch maximising qLogEI on the latent output.
 
     The incumbent is the best observed latent value, or with a learned observation noise
-    the best GP mean at the evaluated points.
+    the best GP mean at the evaluated points, unless ``best_f`` is given.
 
     Args:
         surrogate: the fitted surrogate.
@@ -50,6 +52,9 @@ def propose_ei_batch(
         seed: seed of the QMC sampler and of the random restarts.
         num_restarts: L-BFGS-B restarts of the acquisition optimisation.
         raw_samples: raw points scored to choose the restarts.
+        box: (2 x q) unit-cube sub-box to search in (default: the whole unit cube).
+        best_f: the incumbent, latent units (a local climb's own best,
+            :mod:`.basin_search`); None = as above.
 
     Returns:
         ((b x q) unit-cube points, relative EI = EI(batch) / sd(observed latent values)).
@@ -62,9 +67,16 @@ def propose_ei_batch(
         # best posterior mean at the evaluated points is the incumbent (noisy EI, plug-in)
         with torch.no_grad():
             best = float(surrogate.latent_mean(surrogate.train_x).max())
+    if best_f is not None:
+        best = float(best_f)
     spread = float(train_z.std()) if train_z.numel() > 1 else 1.0
     q = surrogate.dim
-    bounds = torch.stack([torch.zeros(q), torch.ones(q)]).to(torch.float64)
+    if box is None:
+        bounds = torch.stack([torch.zeros(q), torch.ones(q)]).to(torch.float64)
+    else:
+        bounds = torch.as_tensor(box, dtype=torch.float64)
+        if bounds.shape != (2, q) or not bool(torch.all(bounds[0] < bounds[1])):
+            raise ValueError(f"box: shape {tuple(bounds.shape)}; expected (2 x {q}), lower < upper")
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         sampler = SobolQMCNormalSampler(sample_shape=torch.Size([256]), seed=seed)

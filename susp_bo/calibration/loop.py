@@ -48,6 +48,7 @@ import numpy as np
 import torch
 
 from susp_bo.calibration.acquisition import propose_ei_batch, select_uncertainty_batch
+from susp_bo.calibration.basin_search import ClimbReport, climb, secondary_basins
 from susp_bo.calibration.design import (
     check_bounds,
     default_design_size,
@@ -286,6 +287,76 @@ def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.stack([np.minimum(box[0], best), np.maximum(box[1], best)])
 
 
+def _run_basin_phase(
+    evaluate: Evaluate,
+    bounds: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    main_budget: int,
+    iteration: int,
+    settings: CalibrationSettings,
+    history: list[IterationReport],
+    on_iteration: Callable[[IterationReport], None] | None,
+    bar: Any,
+) -> tuple[np.ndarray, np.ndarray, int, list[ClimbReport]]:
+    """The basin phase (:mod:`.basin_search`) on C_w; its runs join the data."""
+    basin = settings.basin
+    q = x.shape[1]
+    cap = int(basin.budget_fraction * (main_budget - x.shape[0]))
+    data = {"x": x, "y": y, "iteration": iteration}
+    explored = np.empty((0, q))
+    climbs: list[ClimbReport] = []
+    used = 0
+
+    def fit(x_unit: np.ndarray, values: np.ndarray, step: int) -> Surrogate:
+        return _fit(from_unit(x_unit, bounds), values, bounds, settings, data["iteration"] + 1)
+
+    def run(u: np.ndarray) -> np.ndarray:
+        w = from_unit(u, bounds)
+        values = _evaluate(evaluate, w)
+        data["x"] = np.vstack([data["x"], w])
+        data["y"] = np.concatenate([data["y"], values])
+        bar.update(len(w))
+        data["iteration"] += 1
+        finite = values[np.isfinite(values)]
+        top = float(finite.max()) if finite.size else math.nan
+        _record(data["iteration"], "basin", data["x"], data["y"], top, history, on_iteration)
+        return values
+
+    while used < cap and len(climbs) < basin.max_basins:
+        with torch_threads(settings.num_threads):
+            u = to_unit(data["x"], bounds)
+            surrogate = _fit(data["x"], data["y"], bounds, settings, data["iteration"] + 1)
+            found = secondary_basins(u, data["y"], surrogate, basin.radius, basin.depth, explored)
+            if not found:
+                break
+            _, _, report = climb(
+                to_unit(data["x"], bounds),
+                data["y"],
+                found[0],
+                cap - used,
+                settings.batch_size,
+                basin,
+                fit,
+                run,
+                lambda step: _seed(settings.seed, data["iteration"] + 1, 6),
+                settings.acquisition_restarts,
+                settings.acquisition_raw_samples,
+                np.vstack([u[int(np.nanargmax(data["y"]))][None], explored]),
+            )
+        used += report.n_evaluations
+        explored = np.vstack([explored, report.start[None], report.end[None]])
+        climbs.append(report)
+        logger.info(
+            "basin search: climbed from log L %.6g to %.6g in %d evaluations (%s)",
+            report.start_log_likelihood,
+            report.end_log_likelihood,
+            report.n_evaluations,
+            report.stop_reason,
+        )
+    return data["x"], data["y"], data["iteration"], climbs
+
+
 def _run_local_phase(
     evaluate: SpectraEvaluator,
     bounds: np.ndarray,
@@ -433,6 +504,8 @@ def calibrate(
     boxed = settings.trust_region
     local: LocalSearchResult | None = None
     laplace: Laplace | None = None
+    basins_done = False
+    climbs: list[ClimbReport] = []
     wants_local = settings.local_search and isinstance(evaluate, SpectraEvaluator)
     if settings.local_search and not wants_local:
         logger.warning(
@@ -457,6 +530,15 @@ def calibrate(
                 laplace,
             )
         phase, box = step.phase, step.box
+        if settings.basin_search and not basins_done and phase == "refine":
+            basins_done = True
+            n_before = x.shape[0]
+            x, y, iteration, new_climbs = _run_basin_phase(
+                evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
+            )
+            climbs.extend(new_climbs)
+            if x.shape[0] > n_before:
+                continue
         if wants_local and local is None and phase == "refine":
             x, y, local, iteration = _run_local_phase(
                 evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
@@ -552,4 +634,5 @@ def calibrate(
         reliability=reliability,
         search_box=box if boxed else None,
         local_search=local,
+        basins=tuple(climbs),
     )

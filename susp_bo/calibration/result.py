@@ -7,13 +7,14 @@ from typing import Any, Literal
 
 import numpy as np
 
+from susp_bo.calibration.basin_search import ClimbReport
 from susp_bo.calibration.local_search import LocalSearchResult
 from susp_bo.calibration.posterior import PosteriorSummary
 from susp_bo.calibration.reliability import Reliability
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
-Phase = Literal["design", "ego", "local", "refine", "check"]
+Phase = Literal["design", "ego", "basin", "local", "refine", "check"]
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class IterationReport:
             "ego": "EI/spread",
             "check": "max |check error|",
             "local": "predicted gain (nats)",
+            "basin": "basin best log L",
         }.get(self.phase, "post. sd[log L]")
         return (
             f"iter {self.iteration:3d} [{self.phase}] evaluations {self.n_evaluations}"
@@ -66,6 +68,8 @@ class CalibrationResult:
             ``settings.trust_region`` or the local phase set a box (:mod:`.trust_region`).
         local_search: what the local phase found (mode and Laplace covariance in the unit
             cube of C_w), None when it did not run (:mod:`.local_search`).
+        basins: the climbs of the basin phase (:mod:`.basin_search`), empty when the data
+            had no secondary basin when EGO ended (or the phase is off).
     """
 
     names: tuple[str, ...]
@@ -83,6 +87,7 @@ class CalibrationResult:
     reliability: Reliability | None = None
     search_box: np.ndarray | None = None
     local_search: LocalSearchResult | None = None
+    basins: tuple[ClimbReport, ...] = ()
 
     @property
     def samples(self) -> np.ndarray:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from susp_bo.calibration.basin_search import BasinSettings
 from susp_bo.calibration.design import DesignMethod
 from susp_bo.calibration.sampling import Backend, Estimator
 from susp_bo.calibration.surrogate import SurrogateSettings
@@ -29,6 +30,10 @@ class CalibrationSettings:
         surrogate: GP settings (output warping etc.).
         ei_tolerance: EGO stops when batch EI / sd(latent log L) < this (> 0).
         max_ego_fraction: share of the post-design budget EGO may use, in [0, 1].
+        basin_search: when EGO ends, climb from evaluated points that head basins other
+            than the best point's (:mod:`.basin_search`: other modes EGO found only at
+            their fringe); nothing happens when the data have no such points.
+        basin: the basin phase's settings.
         refine: run the posterior-refinement phase after EGO.
         refine_tolerance: refinement stops when the posterior mean of sd[log L̃] < this (nats).
         estimator: L̃ used by MCMC: "plug_in", "mean_log" or "expected" (paper's E[L̃]).
@@ -82,6 +87,8 @@ class CalibrationSettings:
     surrogate: SurrogateSettings = field(default_factory=SurrogateSettings)
     ei_tolerance: float = 1e-3
     max_ego_fraction: float = 0.4
+    basin_search: bool = True
+    basin: BasinSettings = field(default_factory=BasinSettings)
     refine: bool = True
     refine_tolerance: float = 0.02
     check_points: int = 8

@@ -1,0 +1,282 @@
+"""Secondary basins of log L: a local climb from evaluated points that head other modes.
+
+EGO (qLogEI) spends its evaluations where the *global* maximum may still improve, so
+a second mode whose peak is a few nats below the first is found only by chance, at its
+fringe, and then left behind: the surrogate extrapolates downward from the fringe, the
+surrogate posterior puts no draws there, and the refinement (which picks among those
+draws) never goes there either. Measured on the trimodal 5-D target
+(``benchmarks/posterior_accuracy.py``, seed 1, 350 evaluations): the third mode (20 % of
+the mass) had 3 evaluations at Mahalanobis² 20–50 from its centre and none nearer; the
+surrogate was 35 nats too low over its bulk and the posterior draws gave it 0 % of the
+mass (MMTV 0.19).
+
+When EGO ends, :func:`secondary_basins` lets every evaluated point within ``depth`` nats
+of the best climb the surrogate's mean by gradient ascent; the climbs that end away
+from the best point's (more than ``radius``, Chebyshev distance in the unit cube of C_w)
+mark other basins of the surrogate, each headed by its best evaluated point. From each,
+highest first, :func:`climb` runs a
+TuRBO-like local search: a qLogEI batch with the basin's own best value as the
+incumbent, optimised in a box of half-width h around the basin's best point; h doubles
+(up to ``max_half_width``) after a batch that improved on it by more than
+``improvement`` nats and halves after one that did not. A climb ends when h falls below
+``min_half_width``, when the basin merges into another one (its best point comes within
+``radius`` of the top of a basin known already), or when the phase's budget is spent. A unimodal
+log L whose surrogate has a single basin among those points (the usual case) costs one
+gradient ascent and changes nothing else.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from susp_bo.calibration.acquisition import propose_ei_batch
+from susp_bo.calibration.surrogate import Surrogate
+
+
+@dataclass(frozen=True)
+class BasinSettings:
+    """Settings of the basin phase (unit-cube lengths, log L in nats).
+
+    Args:
+        radius: surrogate maxima closer than this (Chebyshev, unit cube) are one basin; a
+            climb whose best point comes this close to a higher point it did not find has
+            merged into that point's basin; in (0, 1).
+        depth: only basins whose best value is within this many nats of the best point
+            are climbed (> 0).
+        initial_half_width: half-width of the first climbing box, unit cube, in (0, 0.5].
+        min_half_width: a climb ends when the box is narrower than this (> 0).
+        max_half_width: the box never grows beyond this (>= initial_half_width).
+        improvement: a batch improved on the basin's best when it beat it by more than
+            this many nats (>= 0).
+        max_basins: most basins climbed (>= 1).
+        budget_fraction: share of the evaluations left when EGO ends that the phase may
+            use, in (0, 1).
+    """
+
+    radius: float = 0.1
+    depth: float = 20.0
+    initial_half_width: float = 0.05
+    min_half_width: float = 0.01
+    max_half_width: float = 0.2
+    improvement: float = 0.1
+    max_basins: int = 4
+    budget_fraction: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.radius < 1.0:
+            raise ValueError(f"basin radius: {self.radius} must be in (0, 1)")
+        if not self.depth > 0.0:
+            raise ValueError(f"basin depth: {self.depth} must be > 0 nats")
+        if not 0.0 < self.initial_half_width <= 0.5:
+            raise ValueError(
+                f"basin initial_half_width: {self.initial_half_width} must be in (0, 0.5]"
+            )
+        if not 0.0 < self.min_half_width <= self.initial_half_width <= self.max_half_width:
+            raise ValueError(
+                "basin half-widths: need 0 < min_half_width <= initial_half_width <= "
+                f"max_half_width, got {self.min_half_width}, {self.initial_half_width}, "
+                f"{self.max_half_width}"
+            )
+        if not self.improvement >= 0.0:
+            raise ValueError(f"basin improvement: {self.improvement} must be >= 0 nats")
+        if int(self.max_basins) != self.max_basins or self.max_basins < 1:
+            raise ValueError(f"basin max_basins: {self.max_basins} must be an integer >= 1")
+        if not 0.0 < self.budget_fraction < 1.0:
+            raise ValueError(f"basin budget_fraction: {self.budget_fraction} must be in (0, 1)")
+
+
+def _chebyshev(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n x m) max-norm distances between the rows of a (n x q) and b (m x q)."""
+    return np.max(np.abs(a[:, None, :] - b[None, :, :]), axis=-1)
+
+
+def surrogate_ascent(surrogate: Surrogate, u: np.ndarray, steps: int = 300) -> np.ndarray:
+    """Where gradient ascent on the surrogate's latent mean takes each start (unit cube).
+
+    Args:
+        surrogate: the fitted surrogate.
+        u: (n x q) starts in the unit cube.
+        steps: Adam steps (learning rate 0.01 unit-cube lengths; projected on the cube).
+
+    Returns:
+        (n x q) end points: the surrogate's local maxima the starts lead to.
+    """
+    x = torch.tensor(u, dtype=torch.float64, requires_grad=True)
+    optimiser = torch.optim.Adam([x], lr=0.01)
+    for _ in range(steps):
+        optimiser.zero_grad()
+        (-surrogate.latent_mean(x).sum()).backward()
+        optimiser.step()
+        with torch.no_grad():
+            x.clamp_(0.0, 1.0)
+    return x.detach().numpy()
+
+
+def _peaked(surrogate: Surrogate, ends: np.ndarray, step: float, drop: float) -> np.ndarray:
+    """(n,) whether the surrogate's log L falls by ``drop`` at ``step`` along every axis."""
+    n, q = ends.shape
+    offsets = np.concatenate([np.eye(q), -np.eye(q)]) * step  # 2q x q
+    around = np.clip(ends[:, None, :] + offsets[None], 0.0, 1.0)  # n x 2q x q
+    moved = np.any(np.abs(around - ends[:, None, :]) > 0.0, axis=-1)  # on the cube's face: no
+    with torch.no_grad():
+        centre = surrogate.log_likelihood_mean(torch.as_tensor(ends)).numpy()
+        values = surrogate.log_likelihood_mean(torch.as_tensor(around.reshape(-1, q))).numpy()
+    falls = values.reshape(n, 2 * q) < centre[:, None] - drop
+    return np.all(falls | ~moved, axis=1)
+
+
+def secondary_basins(
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    surrogate: Surrogate,
+    radius: float,
+    depth: float,
+    exclude: np.ndarray | None = None,
+    min_drop: float = 0.5,
+    min_gain: float = 2.0,
+) -> list[int]:
+    """Evaluated points heading basins of the surrogate other than the best point's.
+
+    Every evaluated point within ``depth`` nats of the best climbs the surrogate's mean
+    (:func:`surrogate_ascent`); points whose climbs end within ``radius`` of each other
+    share a basin. Basins whose end lies within ``radius`` of the best point's end or of
+    an ``exclude`` point, or whose head does, are dropped, and so are ends that are not a
+    peak of the surrogate's log L (it must fall by ``min_drop`` nats ``radius`` away
+    along every axis: a climb that stalled where the GP mean is flat, far from the data,
+    is not a basin), and so are basins whose top is evaluated already (``min_gain``).
+
+    Args:
+        x_unit: (n x q) evaluated points in the unit cube.
+        y: (n,) their log L (NaN = failed, ignored).
+        surrogate: the surrogate fitted on these data (unit cube of the same box).
+        radius: basin radius (Chebyshev distance, unit cube).
+        depth: keep points within this many nats of the best.
+        exclude: (m x q) unit-cube points of basins already explored.
+        min_drop: nats the surrogate's log L must fall around a basin's end (>= 0).
+        min_gain: a basin whose top may not beat its best evaluated point by this many
+            nats (the surrogate's mean + 2 sd at the end) is explored already.
+
+    Returns:
+        The best evaluated point of each remaining basin (indices), the basin whose top
+        may be highest (mean + 2 sd at its end) first.
+    """
+    y = np.asarray(y, dtype=np.float64)
+    finite = np.flatnonzero(np.isfinite(y))
+    if finite.size < 2:
+        return []
+    keep = finite[y[finite] >= np.max(y[finite]) - depth]
+    keep = keep[np.argsort(-y[keep], kind="stable")]  # best first
+    ends = surrogate_ascent(surrogate, x_unit[keep])
+    peaked = _peaked(surrogate, ends, radius, min_drop)
+    explored = ends[:1] if exclude is None or len(exclude) == 0 else np.vstack([ends[:1], exclude])
+    done = np.empty((0, x_unit.shape[1])) if exclude is None else np.asarray(exclude)
+    with torch.no_grad():
+        mean, sd = surrogate.log_likelihood_uncertainty(torch.as_tensor(ends))
+    upper = (mean + 2.0 * sd).numpy()
+    heads: list[tuple[float, int]] = []
+    for i in range(1, len(keep)):
+        if upper[i] < y[keep[i]] + min_gain:
+            continue  # explored already: its top is evaluated
+        if not peaked[i]:
+            continue  # a flat stretch of the surrogate, not a maximum
+        if np.any(_chebyshev(ends[i][None], explored)[0] < radius):
+            continue
+        if len(done) and np.any(_chebyshev(x_unit[keep[i]][None], done)[0] < radius):
+            continue
+        heads.append((float(upper[i]), int(keep[i])))
+        explored = np.vstack([explored, ends[i][None]])
+    return [i for _, i in sorted(heads, key=lambda item: -item[0])]
+
+
+@dataclass(frozen=True)
+class ClimbReport:
+    """What one climb did: where it started and ended (unit cube), its values and why it ended."""
+
+    start: np.ndarray
+    end: np.ndarray
+    start_log_likelihood: float
+    end_log_likelihood: float
+    n_evaluations: int
+    stop_reason: str  # "narrow", "merged" or "budget"
+
+
+def climb(
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    start: int,
+    budget: int,
+    batch_size: int,
+    settings: BasinSettings,
+    fit: Callable[[np.ndarray, np.ndarray, int], Surrogate],
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    seed: Callable[[int], int],
+    restarts: int,
+    raw_samples: int,
+    known: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, ClimbReport]:
+    """Local qLogEI climb from evaluated point ``start`` (module docstring).
+
+    Args:
+        x_unit: (n x q) evaluated points, unit cube; y: (n,) their log L.
+        start: index of the basin's best point.
+        budget: most evaluations the climb may use (>= 1).
+        batch_size: points per batch.
+        settings: the basin settings.
+        fit: (x_unit, y, step) -> the surrogate fitted on those data.
+        evaluate: (b x q) unit-cube points -> (b,) log L (NaN = failed); each call is a batch.
+        seed: step -> seed of that step's acquisition.
+        restarts, raw_samples: qLogEI optimisation settings.
+        known: (m x q) unit-cube tops of the basins known already (the best point, earlier
+            climbs' ends): a climb whose best point comes within ``radius`` of one has
+            merged into that basin and ends.
+
+    Returns:
+        (x_unit, y) with the climb's evaluations appended, and its report.
+    """
+    q = x_unit.shape[1]
+    best = start
+    half = settings.initial_half_width
+    used, step, reason = 0, 0, "budget"
+    while used < budget:
+        if half < settings.min_half_width:
+            reason = "narrow"
+            break
+        if len(known) and np.any(_chebyshev(x_unit[best][None], known)[0] < settings.radius):
+            reason = "merged"
+            break
+        surrogate = fit(x_unit, y, step)
+        centre = torch.as_tensor(x_unit[best], dtype=torch.float64)
+        box = torch.stack([(centre - half).clamp(0.0, 1.0), (centre + half).clamp(0.0, 1.0)])
+        size = min(batch_size, budget - used)
+        incumbent = float(surrogate.warping.forward(np.array([y[best]]))[0])
+        u, _ = propose_ei_batch(
+            surrogate, size, seed(step), restarts, raw_samples, box=box, best_f=incumbent
+        )
+        new_x = u.numpy().reshape(-1, q)
+        new_y = np.asarray(evaluate(new_x), dtype=np.float64).reshape(-1)
+        x_unit, y = np.vstack([x_unit, new_x]), np.concatenate([y, new_y])
+        used += len(new_y)
+        step += 1
+        finite_new = np.isfinite(new_y)
+        top = float(np.max(new_y[finite_new])) if finite_new.any() else -math.inf
+        if top > y[best] + settings.improvement:
+            best = x_unit.shape[0] - len(new_y) + int(np.nanargmax(new_y))
+            half = min(2.0 * half, settings.max_half_width)
+        else:
+            if top > y[best]:
+                best = x_unit.shape[0] - len(new_y) + int(np.nanargmax(new_y))
+            half /= 2.0
+    report = ClimbReport(
+        start=x_unit[start].copy(),
+        end=x_unit[best].copy(),
+        start_log_likelihood=float(y[start]),
+        end_log_likelihood=float(y[best]),
+        n_evaluations=used,
+        stop_reason=reason,
+    )
+    return x_unit, y, report
