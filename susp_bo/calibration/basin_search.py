@@ -55,17 +55,18 @@ class BasinSettings:
             this many nats (>= 0).
         max_basins: most basins climbed (>= 1).
         budget_fraction: share of the evaluations left when EGO ends that the phase may
-            use, in (0, 1).
+            use, in (0, 1); shared equally between the basins found (a climb's share is
+            what is left over the number of basins still to climb).
     """
 
     radius: float = 0.1
     depth: float = 20.0
     initial_half_width: float = 0.05
-    min_half_width: float = 0.01
+    min_half_width: float = 0.02
     max_half_width: float = 0.2
-    improvement: float = 0.1
+    improvement: float = 1.0
     max_basins: int = 4
-    budget_fraction: float = 0.3
+    budget_fraction: float = 0.4
 
     def __post_init__(self) -> None:
         if not 0.0 < self.radius < 1.0:

@@ -330,11 +330,12 @@ def _run_basin_phase(
             found = secondary_basins(u, data["y"], surrogate, basin.radius, basin.depth, explored)
             if not found:
                 break
+            share = max(1, min(len(found), basin.max_basins - len(climbs)))
             _, _, report = climb(
                 to_unit(data["x"], bounds),
                 data["y"],
                 found[0],
-                cap - used,
+                min(cap - used, max(settings.batch_size, (cap - used) // share)),
                 settings.batch_size,
                 basin,
                 fit,
