@@ -44,6 +44,7 @@ Example (also in notes/study_example.toml)::
 
     [search]
     local = true            # Gauss–Newton on the spectra after EGO (needed for "paired")
+    basins = true           # climb other modes EGO saw only at their fringe (default true)
 """
 
 from __future__ import annotations
@@ -257,14 +258,20 @@ class SearchConfig:
             Gauss–Newton on the spectra from EGO's best point, then refinement, check and
             MCMC in the box of its Laplace posterior with that bowl as the GP's mean.
             Needed for paired data, whose posterior is 10⁻⁴–10⁻³ of C_w wide.
+        basins: the basin phase (:mod:`susp_bo.calibration.basin_search`) when EGO ends:
+            local climbs from evaluated points that head other modes of log L. Does
+            nothing when the surrogate has a single basin near the best point.
     """
 
     section: ClassVar[str] = "search"
     local: bool = False
+    basins: bool = True
 
     def __post_init__(self) -> None:
-        if not isinstance(self.local, bool):
-            raise ValueError(f"search.local: {self.local!r} is not allowed; expected true or false")
+        for name in ("local", "basins"):
+            value = getattr(self, name)
+            if not isinstance(value, bool):
+                raise ValueError(f"search.{name}: {value!r} is not allowed; expected true or false")
 
 
 _SECTIONS: dict[str, type] = {

@@ -167,6 +167,7 @@ BAD_EDITS = [
     ('sigma = "estimate"', "sigma = [", r"not valid TOML"),
     ("local = true", "local = 1", r"search\.local: 1 is not allowed; expected true or false"),
     ("local = true", "locale = true", r"search\.locale: unknown key \(did you mean 'local'"),
+    ("basins = true", 'basins = "yes"', r"search\.basins: 'yes' is not allowed; expected true"),
 ]
 
 

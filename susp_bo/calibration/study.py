@@ -285,6 +285,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         mcmc_samples=config.mcmc.draws,
         allow_small_budget=config.budget.allow_small,
         local_search=config.search.local,
+        basin_search=config.search.basins,
     )
 
 
