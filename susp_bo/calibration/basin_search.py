@@ -213,9 +213,9 @@ def climb(
     budget: int,
     batch_size: int,
     settings: BasinSettings,
-    fit: Callable[[np.ndarray, np.ndarray, int], Surrogate],
+    fit: Callable[[np.ndarray, np.ndarray], Surrogate],
     evaluate: Callable[[np.ndarray], np.ndarray],
-    seed: Callable[[int], int],
+    seed: Callable[[], int],
     restarts: int,
     raw_samples: int,
     known: np.ndarray,
@@ -228,9 +228,9 @@ def climb(
         budget: most evaluations the climb may use (>= 1).
         batch_size: points per batch.
         settings: the basin settings.
-        fit: (x_unit, y, step) -> the surrogate fitted on those data.
+        fit: (x_unit, y) -> the surrogate fitted on those data.
         evaluate: (b x q) unit-cube points -> (b,) log L (NaN = failed); each call is a batch.
-        seed: step -> seed of that step's acquisition.
+        seed: () -> seed of the next batch's acquisition.
         restarts, raw_samples: qLogEI optimisation settings.
         known: (m x q) unit-cube tops of the basins known already (the best point, earlier
             climbs' ends): a climb whose best point comes within ``radius`` of one has
@@ -242,7 +242,7 @@ def climb(
     q = x_unit.shape[1]
     best = start
     half = settings.initial_half_width
-    used, step, reason = 0, 0, "budget"
+    used, reason = 0, "budget"
     while used < budget:
         if half < settings.min_half_width:
             reason = "narrow"
@@ -250,19 +250,18 @@ def climb(
         if len(known) and np.any(_chebyshev(x_unit[best][None], known)[0] < settings.radius):
             reason = "merged"
             break
-        surrogate = fit(x_unit, y, step)
+        surrogate = fit(x_unit, y)
         centre = torch.as_tensor(x_unit[best], dtype=torch.float64)
         box = torch.stack([(centre - half).clamp(0.0, 1.0), (centre + half).clamp(0.0, 1.0)])
         size = min(batch_size, budget - used)
         incumbent = float(surrogate.warping.forward(np.array([y[best]]))[0])
         u, _ = propose_ei_batch(
-            surrogate, size, seed(step), restarts, raw_samples, box=box, best_f=incumbent
+            surrogate, size, seed(), restarts, raw_samples, box=box, best_f=incumbent
         )
         new_x = u.numpy().reshape(-1, q)
         new_y = np.asarray(evaluate(new_x), dtype=np.float64).reshape(-1)
         x_unit, y = np.vstack([x_unit, new_x]), np.concatenate([y, new_y])
         used += len(new_y)
-        step += 1
         finite_new = np.isfinite(new_y)
         top = float(np.max(new_y[finite_new])) if finite_new.any() else -math.inf
         if top > y[best] + settings.improvement:
@@ -281,3 +280,62 @@ def climb(
         stop_reason=reason,
     )
     return x_unit, y, report
+
+
+def basin_phase(
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    budget: int,
+    batch_size: int,
+    settings: BasinSettings,
+    fit: Callable[[np.ndarray, np.ndarray], Surrogate],
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    seed: Callable[[], int],
+    restarts: int,
+    raw_samples: int,
+) -> list[ClimbReport]:
+    """The whole phase: find secondary basins, climb the most promising, repeat.
+
+    Each round refits the surrogate on all data, lists the basins not explored yet
+    (:func:`secondary_basins`) and climbs the first (:func:`climb`) with an equal share of
+    the budget left among the basins still to climb; its start and end are then explored.
+
+    Args:
+        x_unit: (n x q) evaluated points, unit cube of C_w; y: (n,) their log L.
+        budget: evaluations the phase may use.
+        batch_size: points per batch.
+        settings: the basin settings.
+        fit, evaluate, seed, restarts, raw_samples: as for :func:`climb` (``evaluate``
+            records each batch with the caller).
+
+    Returns:
+        One report per climb (empty when the data head no secondary basin).
+    """
+    explored = np.empty((0, x_unit.shape[1]))
+    climbs: list[ClimbReport] = []
+    used = 0
+    while used < budget and len(climbs) < settings.max_basins:
+        surrogate = fit(x_unit, y)
+        found = secondary_basins(x_unit, y, surrogate, settings.radius, settings.depth, explored)
+        if not found:
+            break
+        share = max(1, min(len(found), settings.max_basins - len(climbs)))
+        known = np.vstack([x_unit[int(np.nanargmax(y))][None], explored])
+        x_unit, y, report = climb(
+            x_unit,
+            y,
+            found[0],
+            min(budget - used, max(batch_size, (budget - used) // share)),
+            batch_size,
+            settings,
+            fit,
+            evaluate,
+            seed,
+            restarts,
+            raw_samples,
+            known,
+        )
+        used += report.n_evaluations
+        explored = np.vstack([explored, report.start[None], report.end[None]])
+        climbs.append(report)
+    return climbs

@@ -6,6 +6,10 @@
    a. EGO with qLogEI until the stopping rule — batch EI below ``ei_tolerance`` x
       the spread (sd) of the observed latent log L — or until EGO has used
       ``max_ego_fraction`` of the evaluations left after the design;
+   a''. with ``settings.basin_search`` (default): when EGO ends, local qLogEI climbs from
+      evaluated points that head basins of the surrogate other than the best point's
+      (:mod:`.basin_search`: modes EGO saw only at their fringe), up to
+      ``basin.budget_fraction`` of the evaluations left; nothing when there is none;
    a'. with ``settings.local_search`` and an evaluator that exposes its spectra
       (:class:`.local_search.SpectraEvaluator`, as the study's does): when EGO ends,
       trust-region Gauss–Newton on the spectra from the best point (up to
@@ -48,7 +52,7 @@ import numpy as np
 import torch
 
 from susp_bo.calibration.acquisition import propose_ei_batch, select_uncertainty_batch
-from susp_bo.calibration.basin_search import ClimbReport, climb, secondary_basins
+from susp_bo.calibration.basin_search import ClimbReport, basin_phase
 from susp_bo.calibration.design import (
     check_bounds,
     default_design_size,
@@ -300,16 +304,11 @@ def _run_basin_phase(
     bar: Any,
 ) -> tuple[np.ndarray, np.ndarray, int, list[ClimbReport]]:
     """The basin phase (:mod:`.basin_search`) on C_w; its runs join the data."""
-    basin = settings.basin
-    q = x.shape[1]
-    cap = int(basin.budget_fraction * (main_budget - x.shape[0]))
     data = {"x": x, "y": y, "iteration": iteration}
-    explored = np.empty((0, q))
-    climbs: list[ClimbReport] = []
-    used = 0
 
-    def fit(x_unit: np.ndarray, values: np.ndarray, step: int) -> Surrogate:
-        return _fit(from_unit(x_unit, bounds), values, bounds, settings, data["iteration"] + 1)
+    def fit(x_unit: np.ndarray, values: np.ndarray) -> Surrogate:
+        # the same data as (x_unit, values), as evaluated (no unit-cube round trip)
+        return _fit(data["x"], data["y"], bounds, settings, data["iteration"] + 1)
 
     def run(u: np.ndarray) -> np.ndarray:
         w = from_unit(u, bounds)
@@ -323,31 +322,20 @@ def _run_basin_phase(
         _record(data["iteration"], "basin", data["x"], data["y"], top, history, on_iteration)
         return values
 
-    while used < cap and len(climbs) < basin.max_basins:
-        with torch_threads(settings.num_threads):
-            u = to_unit(data["x"], bounds)
-            surrogate = _fit(data["x"], data["y"], bounds, settings, data["iteration"] + 1)
-            found = secondary_basins(u, data["y"], surrogate, basin.radius, basin.depth, explored)
-            if not found:
-                break
-            share = max(1, min(len(found), basin.max_basins - len(climbs)))
-            _, _, report = climb(
-                to_unit(data["x"], bounds),
-                data["y"],
-                found[0],
-                min(cap - used, max(settings.batch_size, (cap - used) // share)),
-                settings.batch_size,
-                basin,
-                fit,
-                run,
-                lambda step: _seed(settings.seed, data["iteration"] + 1, 6),
-                settings.acquisition_restarts,
-                settings.acquisition_raw_samples,
-                np.vstack([u[int(np.nanargmax(data["y"]))][None], explored]),
-            )
-        used += report.n_evaluations
-        explored = np.vstack([explored, report.start[None], report.end[None]])
-        climbs.append(report)
+    with torch_threads(settings.num_threads):
+        climbs = basin_phase(
+            to_unit(x, bounds),
+            y,
+            int(settings.basin.budget_fraction * (main_budget - x.shape[0])),
+            settings.batch_size,
+            settings.basin,
+            fit,
+            run,
+            lambda: _seed(settings.seed, data["iteration"] + 1, 6),
+            settings.acquisition_restarts,
+            settings.acquisition_raw_samples,
+        )
+    for report in climbs:
         logger.info(
             "basin search: climbed from log L %.6g to %.6g in %d evaluations (%s)",
             report.start_log_likelihood,

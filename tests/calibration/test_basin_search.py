@@ -82,9 +82,9 @@ def test_the_climb_reaches_the_peak_of_the_fringe_mode() -> None:
         budget=32,
         batch_size=4,
         settings=BasinSettings(),
-        fit=lambda u, v, step: _surrogate(u, v),
+        fit=_surrogate,
         evaluate=log_l,
-        seed=lambda step: 100 + step,
+        seed=lambda: 100,
         restarts=4,
         raw_samples=128,
         known=CENTRES[:1],
@@ -101,8 +101,8 @@ def test_a_climb_into_the_best_basin_stops_as_merged() -> None:
     x = np.vstack([x, np.clip(CENTRES[0] + SD * np.array([3.0, 3.0]), 0, 1)[None]])
     y = log_l_one(x)
     _, _, report = climb(
-        x, y, len(x) - 1, 40, 4, BasinSettings(), lambda u, v, s: _surrogate(u, v), log_l_one,
-        lambda s: s, 4, 128, x[np.argmax(y)][None],
+        x, y, len(x) - 1, 40, 4, BasinSettings(), _surrogate, log_l_one, lambda: 0, 4, 128,
+        x[np.argmax(y)][None],
     )  # fmt: skip
     assert report.stop_reason == "merged"
     assert report.n_evaluations < 40
