@@ -8,6 +8,7 @@ from typing import Any, Literal
 import numpy as np
 
 from susp_bo.calibration.basin_search import ClimbReport
+from susp_bo.calibration.design import from_unit
 from susp_bo.calibration.local_search import LocalSearchResult
 from susp_bo.calibration.posterior import PosteriorSummary
 from susp_bo.calibration.reliability import Reliability
@@ -99,6 +100,20 @@ class CalibrationResult:
         """(2 x q) the box the surrogate works in (its unit cube): the search box or C_w."""
         return self.bounds if self.search_box is None else self.search_box
 
+    def basin_climbs(self) -> list[dict[str, Any]]:
+        """The basin phase's climbs, JSON-ready (start and end in physical units)."""
+        return [
+            {
+                "start": from_unit(c.start[None], self.bounds)[0].tolist(),
+                "end": from_unit(c.end[None], self.bounds)[0].tolist(),
+                "start_log_likelihood": c.start_log_likelihood,
+                "end_log_likelihood": c.end_log_likelihood,
+                "n_evaluations": c.n_evaluations,
+                "stop_reason": c.stop_reason,
+            }
+            for c in self.basins
+        ]
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (physical units)."""
         out = self.summary.to_dict()
@@ -111,5 +126,6 @@ class CalibrationResult:
             surrogate_check=None if self.check is None else self.check.to_dict(self.box),
             search_box=None if self.search_box is None else self.search_box.tolist(),
             reliability=None if self.reliability is None else self.reliability.to_dict(),
+            basin_climbs=self.basin_climbs(),
         )
         return out

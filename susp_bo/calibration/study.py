@@ -384,6 +384,7 @@ def result_payload(
         "surrogate_check": None if result.check is None else result.check.to_dict(result.box),
         "search_box": None if result.search_box is None else result.search_box.tolist(),
         "local_search": local_search_payload(result, study.bounds),
+        "basin_climbs": result.basin_climbs(),
         "reliability": None if result.reliability is None else result.reliability.to_dict(),
         "reference": None if study.reference is None else study.reference.tolist(),
         "output_error": output_error_payload(study),
