@@ -14,15 +14,19 @@ When EGO ends, :func:`secondary_basins` lets every evaluated point within ``dept
 of the best climb the surrogate's mean by gradient ascent; the climbs that end away
 from the best point's (more than ``radius``, Chebyshev distance in the unit cube of C_w)
 mark other basins of the surrogate, each headed by its best evaluated point. From each,
-highest first, :func:`climb` runs a
-TuRBO-like local search: a qLogEI batch with the basin's own best value as the
-incumbent, optimised in a box of half-width h around the basin's best point; h doubles
-(up to ``max_half_width``) after a batch that improved on it by more than
-``improvement`` nats and halves after one that did not. A climb ends when h falls below
-``min_half_width``, when the basin merges into another one (its best point comes within
-``radius`` of the top of a basin known already), or when the phase's budget is spent. A unimodal
-log L whose surrogate has a single basin among those points (the usual case) costs one
-gradient ascent and changes nothing else.
+the one whose top may be highest first, :func:`climb` runs a TuRBO-like local search: a
+qLogEI batch with the basin's own best value as the incumbent, optimised in a box of
+half-width h around the basin's best point; h doubles (up to ``max_half_width``) after a
+batch that improved on it by more than ``improvement`` nats and halves after one that did
+not. A climb ends when h falls below ``min_half_width``, when the basin merges into
+another one (its best point comes within ``radius`` of the top of a basin known already),
+or when its share of the phase's budget is spent (:func:`basin_phase`). A unimodal log L
+whose surrogate has a single basin among those points (the usual case) costs one gradient
+ascent and changes nothing else.
+
+Known weakness: a basin skipped because its top is evaluated already (``min_gain``) does
+not mark its end as explored, so a lower point of the same basin can still head a
+(short, wasted) climb.
 """
 
 from __future__ import annotations
