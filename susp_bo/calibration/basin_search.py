@@ -23,10 +23,6 @@ another one (its best point comes within ``radius`` of the top of a basin known 
 or when its share of the phase's budget is spent (:func:`basin_phase`). A unimodal log L
 whose surrogate has a single basin among those points (the usual case) costs one gradient
 ascent and changes nothing else.
-
-Known weakness: a basin skipped because its top is evaluated already (``min_gain``) does
-not mark its end as explored, so a lower point of the same basin can still head a
-(short, wasted) climb.
 """
 
 from __future__ import annotations
@@ -185,16 +181,16 @@ def secondary_basins(
     upper = (mean + 2.0 * sd).numpy()
     heads: list[tuple[float, int]] = []
     for i in range(1, len(keep)):
-        if upper[i] < y[keep[i]] + min_gain:
-            continue  # explored already: its top is evaluated
-        if not peaked[i]:
-            continue  # a flat stretch of the surrogate, not a maximum
         if np.any(_chebyshev(ends[i][None], explored)[0] < radius):
-            continue
+            continue  # a basin seen already (from a higher point: points come best first)
+        explored = np.vstack([explored, ends[i][None]])
         if len(done) and np.any(_chebyshev(x_unit[keep[i]][None], done)[0] < radius):
             continue
+        if upper[i] < y[keep[i]] + min_gain:
+            continue  # its top is evaluated already
+        if not peaked[i]:
+            continue  # a flat stretch of the surrogate, not a maximum
         heads.append((float(upper[i]), int(keep[i])))
-        explored = np.vstack([explored, ends[i][None]])
     return [i for _, i in sorted(heads, key=lambda item: -item[0])]
 
 
