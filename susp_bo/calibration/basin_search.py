@@ -264,12 +264,12 @@ def climb(
         used += len(new_y)
         finite_new = np.isfinite(new_y)
         top = float(np.max(new_y[finite_new])) if finite_new.any() else -math.inf
-        if top > y[best] + settings.improvement:
+        gain = top - y[best]
+        if gain > 0.0:
             best = x_unit.shape[0] - len(new_y) + int(np.nanargmax(new_y))
+        if gain > settings.improvement:
             half = min(2.0 * half, settings.max_half_width)
         else:
-            if top > y[best]:
-                best = x_unit.shape[0] - len(new_y) + int(np.nanargmax(new_y))
             half /= 2.0
     report = ClimbReport(
         start=x_unit[start].copy(),

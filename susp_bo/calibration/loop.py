@@ -60,6 +60,7 @@ from susp_bo.calibration.design import (
     space_filling_design,
     to_unit,
 )
+from susp_bo.calibration.iteration_record import PhaseRecorder, record_iteration
 from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator, local_search
 from susp_bo.calibration.posterior import summarize
 from susp_bo.calibration.reliability import (
@@ -101,32 +102,6 @@ def torch_threads(n: int | None) -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(previous)
-
-
-def _record(
-    iteration: int,
-    phase: Phase,
-    x: np.ndarray,
-    y: np.ndarray,
-    criterion: float,
-    history: list[IterationReport],
-    on_iteration: Callable[[IterationReport], None] | None,
-) -> None:
-    """Appends the report of the batch just evaluated to ``history``, logs it, calls back."""
-    best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
-    report = IterationReport(
-        iteration,
-        phase,
-        x.shape[0],
-        float(y[best]),
-        x[best].copy(),
-        criterion,
-        int(np.sum(~np.isfinite(y))),
-    )
-    history.append(report)
-    logger.info(report.line())
-    if on_iteration is not None:
-        on_iteration(report)
 
 
 def _seed(master: int, iteration: int, purpose: int) -> int:
@@ -304,22 +279,17 @@ def _run_basin_phase(
     bar: Any,
 ) -> tuple[np.ndarray, np.ndarray, int, list[ClimbReport]]:
     """The basin phase (:mod:`.basin_search`) on C_w; its runs join the data."""
-    data = {"x": x, "y": y, "iteration": iteration}
+    data = PhaseRecorder(x, y, iteration, history, on_iteration, bar)
 
     def fit(x_unit: np.ndarray, values: np.ndarray) -> Surrogate:
         # the same data as (x_unit, values), as evaluated (no unit-cube round trip)
-        return _fit(data["x"], data["y"], bounds, settings, data["iteration"] + 1)
+        return _fit(data.x, data.y, bounds, settings, data.iteration + 1)
 
     def run(u: np.ndarray) -> np.ndarray:
         w = from_unit(u, bounds)
         values = _evaluate(evaluate, w)
-        data["x"] = np.vstack([data["x"], w])
-        data["y"] = np.concatenate([data["y"], values])
-        bar.update(len(w))
-        data["iteration"] += 1
         finite = values[np.isfinite(values)]
-        top = float(finite.max()) if finite.size else math.nan
-        _record(data["iteration"], "basin", data["x"], data["y"], top, history, on_iteration)
+        data.add("basin", w, values, float(finite.max()) if finite.size else math.nan)
         return values
 
     with torch_threads(settings.num_threads):
@@ -331,7 +301,7 @@ def _run_basin_phase(
             settings.basin,
             fit,
             run,
-            lambda: _seed(settings.seed, data["iteration"] + 1, 6),
+            lambda: _seed(settings.seed, data.iteration + 1, 6),
             settings.acquisition_restarts,
             settings.acquisition_raw_samples,
         )
@@ -343,7 +313,7 @@ def _run_basin_phase(
             report.n_evaluations,
             report.stop_reason,
         )
-    return data["x"], data["y"], data["iteration"], climbs
+    return data.x, data.y, data.iteration, climbs
 
 
 def _run_local_phase(
@@ -362,17 +332,13 @@ def _run_local_phase(
     finite = np.isfinite(y)
     start = x[finite][int(np.argmax(y[finite]))]
     cap = int(settings.local_search_fraction * (main_budget - x.shape[0]))
-    data = {"x": x, "y": y, "iteration": iteration}
+    data = PhaseRecorder(x, y, iteration, history, on_iteration, bar)
 
     def record(w: np.ndarray, values: np.ndarray, gain: float) -> None:
-        data["x"] = np.vstack([data["x"], w])
-        data["y"] = np.concatenate([data["y"], values])
-        bar.update(len(w))
-        data["iteration"] += 1
-        _record(data["iteration"], "local", data["x"], data["y"], gain, history, on_iteration)
+        data.add("local", w, values, gain)
 
     result = local_search(evaluate, bounds, start, cap, on_evaluations=record)
-    return data["x"], data["y"], result, data["iteration"]
+    return data.x, data.y, result, data.iteration
 
 
 class BudgetTooSmallError(ValueError):
@@ -550,7 +516,7 @@ def calibrate(
         y_new = _evaluate(evaluate, w_new)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(size)
-        _record(iteration, phase, x, y, step.criterion, history, on_iteration)
+        record_iteration(iteration, phase, x, y, step.criterion, history, on_iteration)
     check = None
     if n_check > 0:
         with torch_threads(settings.num_threads):
@@ -560,7 +526,7 @@ def calibrate(
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(n_check)
-        _record(iteration + 1, "check", x, y, check.max_abs_error, history, on_iteration)
+        record_iteration(iteration + 1, "check", x, y, check.max_abs_error, history, on_iteration)
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
     with torch_threads(settings.num_threads):
