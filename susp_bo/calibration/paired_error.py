@@ -274,3 +274,43 @@ def paired_expected_log_likelihood(
     if error.model_error_sigma is None:
         mean += 0.25 * lam.shape[0]
     return mean, math.sqrt(n / 2.0)
+
+
+def paired_fisher_information(
+    simulated: np.ndarray, gradient: np.ndarray, error: PairedOutputError
+) -> np.ndarray:
+    """B's Fisher information about parameters from the spectra's mean, Σ_i G_iᵀ Σ_i⁻¹ G_i.
+
+    The information the residual's mean carries (the covariance's dependence on the
+    parameters adds a little more, ignored here), on the bands projected onto the range of
+    R_i as in :func:`whitened_residuals`; with the profiled τ_c at 0 (an exact model).
+    Its inverse is the Laplace posterior covariance of an exact, linear model.
+
+    Args:
+        simulated: (ν x C x F) spectra at the parameters (noise floor included).
+        gradient: (q x ν x C x F) their derivatives with respect to the q parameters
+            (any units: the information is in the inverse square of those units).
+        error: the paired error model (sensor noise > 0).
+
+    Returns:
+        (q x q) symmetric positive semi-definite information matrix.
+
+    Raises:
+        ValueError: shapes that do not match, or no sensor noise (B's covariance is 0).
+    """
+    h = np.asarray(simulated, dtype=np.float64)
+    g = np.asarray(gradient, dtype=np.float64)
+    if h.ndim != 3 or g.ndim != 4 or g.shape[1:] != h.shape:
+        raise ValueError(f"simulated {h.shape}, gradient {g.shape}: expected (ν x C x F) and "
+                         "(q x ν x C x F)")  # fmt: skip
+    if error.noise_m_s2 <= 0.0:
+        raise ValueError("noise_m_s2: 0 leaves B without a covariance to weigh the bands with")
+    info = np.zeros((g.shape[0], g.shape[0]))
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        for i in range(h.shape[0]):
+            r_full, basis = error.projection(i)
+            _, cov = noise_residual_moments(h[i], error.noise_psd, r_full)
+            projected = g[:, i] @ basis  # q x C x F'
+            solved = np.linalg.solve(basis.T @ cov @ basis, np.moveaxis(projected, 0, -1))
+            info += np.einsum("kcf,cfl->kl", projected, solved)
+    return 0.5 * (info + info.T)

@@ -1,0 +1,176 @@
+"""Monte Carlo check of the paired output-error model B on fixed tracks and truths.
+
+The SBC (:mod:`coverage`) draws, per experiment, a truth, ν tracks and one sensor-noise
+realisation, so a miss there mixes three things: B, the search and surrogate, and the
+luck of 40 noise draws. This script holds the truth and the tracks of each SBC
+experiment fixed (``--sbc-seed S``: those of ``coverage.py --seed S``) and redraws only
+the sensor noise, ``--draws`` times, which is exactly the randomness B models:
+
+- the score of the tool's own log L at the truth (:func:`paired_log_likelihood`, τ_c
+  profiled, log-determinant included; central differences of 1e-4 of C_w), standardised
+  by B's Fisher information I = Σ_i G_iᵀ Σ_i⁻¹ G_i (G the derivative of h, Σ B's
+  projected covariance at the truth; :func:`paired_fisher_information`), must have
+  mean 0 for every truth and track;
+- the one-step posterior z = [I⁻¹ s]_k / sqrt([I⁻¹]_kk) must have E[z² | truth, tracks]
+  ≈ 1 (≤ 1: conservative). Averaged over the experiments this is the z rms that SBC
+  would see from B alone over infinitely many noise draws;
+- the SBC's own data set (noise seeded as in ``coverage.py``) gives one z per experiment:
+  their rms over the experiments is what a Laplace SBC of B sees on those data sets.
+
+Where the population's E[z²] is ≈ 1 and the data sets' rms is not, the excess comes
+from the finite set of noise draws, not from B. About 0.13 s a noise draw at ν = 3.
+
+    python benchmarks/paired_noise_check.py [--sbc-seed 0] [--experiments 40] [--draws 150]
+        [--noise 0.01] [--nu 3] [--out FILE.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fast_path import FastPathProblem, Options
+
+from susp_bo.calibration.paired_error import (
+    PairedOutputError,
+    paired_fisher_information,
+    paired_log_likelihood,
+)
+from susp_bo.commands.demo import DEMO_RIG
+from susp_bo.data.synthetic import track_seed
+from susp_bo.rig.linear import LinearisedRig
+from susp_bo.rig.simulator import synthetic_track
+from susp_bo.rig.spec import RigSpec, load_rig_spec
+from susp_bo.rig.spectra import log_amplitude_spectra
+
+STEP = 1e-4  # central-difference step, fraction of C_w
+
+
+def clean_signals(spec: RigSpec, truth: dict[str, float], nu: int, data_seed: int) -> list:
+    """(ν,) noise-free sensor signals (C x n_t, m/s²) of the truth on the SBC's tracks."""
+    true_spec = spec.with_parameters(truth)
+    rig = LinearisedRig(true_spec)
+    sim = spec.simulation
+    out = []
+    for index in range(nu):
+        geometry = synthetic_track(true_spec, seed=track_seed(data_seed, index))
+        response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / sim.sample_rate_hz)
+        out.append((np.array(response.accelerations_m_s2, dtype=np.float64), response.channels))
+    return out
+
+
+def experiment_check(
+    spec: RigSpec, options: Options, sbc_seed: int, experiment: int, draws: int
+) -> dict:
+    """Scores and one-step z of one SBC experiment: its own data set and ``draws`` redraws."""
+    names, bounds = spec.calibration_names, spec.calibration_bounds
+    span, q = bounds[1] - bounds[0], len(names)
+    u_true = np.random.default_rng([sbc_seed, experiment, 11]).uniform(size=q)
+    data_seed = int(np.random.SeedSequence([sbc_seed, experiment, 13]).generate_state(1)[0])
+    truth = dict(zip(names, (bounds[0] + u_true * span).tolist()))
+    problem = FastPathProblem(spec, truth, options, data_seed)
+    error = problem.error
+    assert isinstance(error, PairedOutputError)
+    steps = STEP * np.eye(q)
+    shifted = problem.spectra(bounds[0] + np.vstack([u_true + steps, u_true - steps]) * span)
+    h = problem.spectra((bounds[0] + u_true * span)[None])[0]
+    grad = (shifted[:q] - shifted[q:]) / (2 * STEP)
+    info = paired_fisher_information(h, grad, error)
+    covariance = np.linalg.inv(info)
+    rate = spec.simulation.sample_rate_hz
+    signals = clean_signals(spec, truth, options.nu, data_seed)
+
+    def measured(rng_for_run) -> np.ndarray:
+        return np.stack([
+            log_amplitude_spectra(s + rng_for_run(i).normal(0.0, options.noise, s.shape),
+                                  rate, channels, spec.spectrum).log_amplitude
+            for i, (s, channels) in enumerate(signals)
+        ])  # fmt: skip
+
+    def one_step(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ll = paired_log_likelihood(y, shifted, error, exact=True)
+        score = (ll[:q] - ll[q:]) / (2 * STEP)
+        return score / np.sqrt(np.diag(info)), covariance @ score / np.sqrt(np.diag(covariance))
+
+    own = measured(lambda i: np.random.default_rng([data_seed, i, 2]))
+    if not np.allclose(own, problem.measured, rtol=0, atol=1e-12):
+        raise RuntimeError("the reproduced data set differs from coverage.py's")
+    own_score, own_z = one_step(own)
+    noise_rng = np.random.default_rng([sbc_seed, experiment, 97])
+    scores, zs = zip(*(one_step(measured(lambda i: noise_rng)) for _ in range(draws)))
+    scores, zs = np.array(scores), np.array(zs)
+    return {
+        "experiment": experiment,
+        "u_true": u_true.tolist(),
+        "own_score": own_score.tolist(),
+        "own_z": own_z.tolist(),
+        "score_mean": scores.mean(axis=0).tolist(),
+        "z_mean": zs.mean(axis=0).tolist(),
+        "z_ms": np.mean(zs**2, axis=0).tolist(),
+    }
+
+
+def summary(names: tuple[str, ...], records: list[dict], draws: int) -> str:
+    """The per-parameter table (see the module docstring)."""
+    own_z = np.array([r["own_z"] for r in records])
+    own_score = np.array([r["own_score"] for r in records])
+    z_ms = np.array([r["z_ms"] for r in records])
+    z_mean = np.array([r["z_mean"] for r in records])
+    score_mean = np.array([r["score_mean"] for r in records])
+    n = len(records)
+    lines = [
+        f"{n} experiments x {draws} noise draws on fixed truths and tracks",
+        f"{'parameter':30s} {'E[score]':>9s} {'E[z]':>7s} {'E[z²] rms':>10s} "
+        f"{'(range)':>12s} | {'data sets: score mean (t)':>26s} {'z rms':>6s}",
+    ]
+    for k, name in enumerate(names):
+        t = own_score[:, k].mean() / (own_score[:, k].std(ddof=1) / np.sqrt(n))
+        lines.append(
+            f"{name:30s} {score_mean[:, k].mean():+9.3f} {z_mean[:, k].mean():+7.3f} "
+            f"{np.sqrt(z_ms[:, k].mean()):10.2f} "
+            f"({np.sqrt(z_ms[:, k].min()):.2f}–{np.sqrt(z_ms[:, k].max()):.2f}) | "
+            f"{own_score[:, k].mean():+17.2f} ({t:+.1f}) {np.sqrt(np.mean(own_z[:, k] ** 2)):6.2f}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sbc-seed", type=int, default=0, help="coverage.py's --seed")
+    parser.add_argument("--experiments", type=int, default=40)
+    parser.add_argument("--first", type=int, default=0, help="first experiment index")
+    parser.add_argument("--draws", type=int, default=150, help="noise draws per experiment")
+    parser.add_argument("--noise", type=float, default=0.01, help="sensor noise, m/s^2 rms")
+    parser.add_argument("--nu", type=int, default=3)
+    parser.add_argument("--out", type=Path, default=None, help="write every record (JSON)")
+    args = parser.parse_args(argv)
+    for flag, value, low in (("--experiments", args.experiments, 1), ("--draws", args.draws, 2),
+                             ("--nu", args.nu, 1), ("--first", args.first, 0)):  # fmt: skip
+        if value < low:
+            parser.error(f"{flag}: got {value}; expected an integer >= {low}")
+    if not args.noise > 0:
+        parser.error(f"--noise: got {args.noise}; expected a value > 0 m/s^2")
+    spec = load_rig_spec(DEMO_RIG)
+    options = Options(nu=args.nu, noise=args.noise, seed=args.sbc_seed, error="paired",
+                      budget=None, smoke=False)  # fmt: skip
+    records = []
+    started = time.perf_counter()
+    for experiment in range(args.first, args.first + args.experiments):
+        records.append(experiment_check(spec, options, args.sbc_seed, experiment, args.draws))
+        print(f"paired_noise_check: experiment {experiment} done "
+              f"({time.perf_counter() - started:.0f} s)", file=sys.stderr, flush=True)  # fmt: skip
+        if args.out is not None:
+            payload = {"options": vars(args) | {"out": str(args.out)}, "records": records}
+            args.out.write_text(json.dumps(payload, indent=1))
+    print(summary(spec.calibration_names, records, args.draws))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
