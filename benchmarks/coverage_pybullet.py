@@ -42,7 +42,7 @@ end, its folder resumes; two processes with ``--first 0 / 4 / 8 / 12``; 2 shared
 Every verdict was ``trusted`` and the intervals held the truth 81 times in 84 — as often
 as 95 % intervals should. Per parameter, 12 experiments cannot separate much: the yaw
 damper's intervals look ~1.6x wider than needed, the secondary lateral damper's slightly
-narrow (as on the linearised rig, see ``paired_score_check.py``).
+narrow (as on the linearised rig's SBC data sets, see ``paired_noise_check.py``).
 """
 
 from __future__ import annotations

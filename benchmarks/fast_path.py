@@ -85,6 +85,40 @@ def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
     return settings
 
 
+def sbc_draw(seed: int, experiment: int, q: int) -> tuple[np.ndarray, int]:
+    """Experiment ``experiment`` of ``coverage.py --seed seed``: (u_true (q,), data seed).
+
+    u_true is the truth in the unit cube of C_w; the data seed seeds the runs' tracks and
+    sensor noise (:class:`FastPathProblem`).
+    """
+    u_true = np.random.default_rng([seed, experiment, 11]).uniform(size=q)
+    data_seed = int(np.random.SeedSequence([seed, experiment, 13]).generate_state(1)[0])
+    return u_true, data_seed
+
+
+def laplace_at_truth(
+    problem: FastPathProblem, bounds: np.ndarray, u_true: np.ndarray, step: float = 1e-4
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spectra at u_true ± step e_k and B's Fisher information there (unit-cube coordinates,
+    :func:`~susp_bo.calibration.paired_error.paired_fisher_information`); paired model only.
+
+    Returns ``(shifted, information)``: (2q x ν x C x F) spectra (plus steps first, then
+    minus) and the (q x q) information matrix.
+    """
+    from susp_bo.calibration.paired_error import paired_fisher_information
+
+    q = len(u_true)
+    span = bounds[1] - bounds[0]
+    steps = step * np.eye(q)
+    shifted = problem.spectra(bounds[0] + np.vstack([u_true + steps, u_true - steps]) * span)
+    h = problem.spectra((bounds[0] + u_true * span)[None])[0]
+    assert isinstance(problem.error, PairedOutputError)
+    information = paired_fisher_information(
+        h, (shifted[:q] - shifted[q:]) / (2 * step), problem.error
+    )
+    return shifted, information
+
+
 class FastPathProblem:
     """Synthetic runs of one truth and ``evaluate(W) -> log L`` on the linearised rig."""
 
