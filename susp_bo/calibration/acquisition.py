@@ -13,7 +13,10 @@ Two batch criteria, both in the unit cube:
   with the largest posterior-weighted uncertainty exp(E[log L̃] − max) · sd[log L̃],
   i.e. the largest local error of the posterior density; after each pick the GP
   variance is conditioned on that point (the variance does not depend on the
-  unseen value, so this is exact), which spreads the batch.
+  unseen value, so this is exact), which spreads the batch. With ``optimism`` κ > 0
+  the weight is the optimistic exp(E[log L̃] + κ sd[log L̃] − max) instead, recomputed
+  after each pick: regions where the surrogate is unsure whether the posterior has
+  mass (a curved posterior's arms that no evaluation came near) are refined too.
 """
 
 from __future__ import annotations
@@ -102,6 +105,7 @@ def select_uncertainty_batch(
     candidates: torch.Tensor,
     batch_size: int,
     posterior_count: int | None = None,
+    optimism: float = 0.0,
 ) -> tuple[torch.Tensor, float]:
     """Greedy batch of largest posterior-weighted log L uncertainty.
 
@@ -111,6 +115,8 @@ def select_uncertainty_batch(
         batch_size: number of points b to select (<= m).
         posterior_count: the first ``posterior_count`` candidates are posterior draws (default
             all); the stopping statistic averages over them.
+        optimism: κ >= 0 of the optimistic weight (module docstring); 0 (default) weighs
+            by exp(E[log L̃] − max), fixed over the batch.
 
     Returns:
         ((b x q) selected points, posterior mean of sd[log L̃] in nats: the refinement
@@ -118,6 +124,8 @@ def select_uncertainty_batch(
     """
     if candidates.shape[0] < batch_size:
         raise ValueError(f"candidates: {candidates.shape[0]} points < batch_size {batch_size}")
+    if not (math.isfinite(optimism) and optimism >= 0.0):
+        raise ValueError(f"optimism: {optimism} must be finite and >= 0")
     mean_z, cov_z = surrogate.latent_covariance(candidates)
     warping = surrogate.warping
     var_z = cov_z.diagonal().clamp_min(1e-12)
@@ -130,6 +138,9 @@ def select_uncertainty_batch(
     chosen: list[int] = []
     for _ in range(batch_size):
         var = cov.diagonal().clamp_min(0.0)
+        if optimism > 0.0:
+            optimistic = log_l + optimism * var.sqrt()
+            weight = torch.exp(optimistic - optimistic.max())
         score = weight * var.sqrt()
         if chosen:
             score[chosen] = -1.0

@@ -45,7 +45,7 @@ import logging
 import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -127,7 +127,24 @@ def _evaluate(evaluate: Evaluate, w: np.ndarray) -> np.ndarray:
 def _refinement_candidates(
     surrogate: Surrogate, settings: CalibrationSettings, seed: int
 ) -> tuple[torch.Tensor, int]:
-    """Posterior draws of the current surrogate plus a widened copy (unit cube)."""
+    """Posterior draws of the current surrogate plus a widened copy (unit cube).
+
+    With ``settings.refine_optimism`` > 0 the widened copy is replaced by draws of the
+    optimistic surrogate posterior exp(E[L̃]) (the ``expected`` estimator, which grows
+    where the GP is unsure): candidates in regions the plug-in posterior does not visit.
+    """
+    post, wide, n_post = _posterior_candidates(surrogate, settings, seed)
+    if settings.refine_optimism > 0.0 and settings.estimator != "expected":
+        optimistic = replace(settings, estimator="expected")
+        extra, _, _ = _posterior_candidates(surrogate, optimistic, seed + 1)
+        return torch.cat([post, extra]), n_post
+    return torch.cat([post, wide]), n_post
+
+
+def _posterior_candidates(
+    surrogate: Surrogate, settings: CalibrationSettings, seed: int
+) -> tuple[torch.Tensor, torch.Tensor, int]:
+    """``(post, wide, m)``: m surrogate posterior draws and m widened ones (unit cube)."""
     m = settings.candidate_count
     chains = 32
     steps = max(1, math.ceil(2 * m / chains))
@@ -145,7 +162,7 @@ def _refinement_candidates(
     post, wide = flat[pick[:m]], flat[pick[m:]]
     sd = flat.std(0).clamp_min(1e-3)
     wide = (wide + sd * torch.randn(wide.shape, generator=gen, dtype=torch.float64)).clamp(0, 1)
-    return torch.cat([post, wide]), post.shape[0]
+    return post, wide, post.shape[0]
 
 
 def _fit(
@@ -232,7 +249,9 @@ def _propose(
             candidates, n_post = _refinement_candidates(
                 surrogate, settings, _seed(seed, iteration, 3)
             )
-    u, criterion = select_uncertainty_batch(surrogate, candidates, size, n_post)
+    u, criterion = select_uncertainty_batch(
+        surrogate, candidates, size, n_post, optimism=settings.refine_optimism
+    )
     if criterion < settings.refine_tolerance:
         return _Step("refine", None, criterion, "converged", box)
     return _Step("refine", u, criterion, "", box)

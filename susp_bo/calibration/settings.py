@@ -6,6 +6,7 @@ its name, its value and what is allowed before any evaluation runs.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from susp_bo.calibration.basin_search import BasinSettings
@@ -36,6 +37,12 @@ class CalibrationSettings:
         basin: the basin phase's settings.
         refine: run the posterior-refinement phase after EGO.
         refine_tolerance: refinement stops when the posterior mean of sd[log L̃] < this (nats).
+        refine_optimism: κ >= 0. 0 (default): refinement candidates are surrogate posterior
+            draws and a widened copy, weighted by exp(E[log L̃] − max). κ > 0: the widened
+            copy is replaced by draws of the optimistic posterior exp(E[L̃]) and the weight
+            is exp(E[log L̃] + κ sd − max) (:func:`.acquisition.select_uncertainty_batch`):
+            refines where the surrogate may be missing posterior mass (curved posteriors'
+            arms; ``benchmarks/posterior_accuracy.py``, method ``susp_bo-optimistic``).
         estimator: L̃ used by MCMC: "plug_in", "mean_log" or "expected" (paper's E[L̃]).
         check_points: evaluations kept from the end of the budget for the held-out check
             of the surrogate posterior at its 95 % edges (:mod:`surrogate_check`), >= 0;
@@ -91,6 +98,7 @@ class CalibrationSettings:
     basin: BasinSettings = field(default_factory=BasinSettings)
     refine: bool = True
     refine_tolerance: float = 0.02
+    refine_optimism: float = 0.0
     check_points: int = 8
     check_tolerance: float = 1.0
     estimator: Estimator = "plug_in"
@@ -143,6 +151,8 @@ class CalibrationSettings:
             )
         if not self.refine_tolerance > 0.0:
             raise ValueError(f"refine_tolerance: {self.refine_tolerance} must be > 0 nats")
+        if not (math.isfinite(self.refine_optimism) and self.refine_optimism >= 0.0):
+            raise ValueError(f"refine_optimism: {self.refine_optimism} must be finite and >= 0")
         if not 0.0 < self.local_search_fraction < 1.0:
             raise ValueError(
                 f"local_search_fraction: {self.local_search_fraction} must be in (0, 1)"
