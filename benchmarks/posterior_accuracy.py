@@ -172,6 +172,44 @@ A unimodal paired problem is not changed at all: a fast-path SBC experiment
 (``coverage.py --nu 2``, experiment 0) gave a bit-identical record with and without the
 phase (all fields but the wall time).
 
+Session 8 (25 Nov 2026, 2 cores shared with CI runs and an SBC; each command appends to
+its own ``--out`` file):
+
+- Noisy 7-D Gaussian with the learned noise, the code of this session (basin phase
+  included), ``python benchmarks/posterior_accuracy.py --budget-fractions 1.0 --targets
+  noisy_gaussian_7d --methods susp_bo-noise --seeds 0 1 2``: MMTV **.036 / .043 / .046**
+  (median .043, worst .046; session 4: .055 / .037 / .060), 264–271 s a run; all three
+  ``not_trusted`` (``not_converged``: the refinement criterion, a posterior mean of the GP
+  sd, cannot fall below 0.02 nats when every evaluation carries 1 nat of noise).
+  **MMTV <= 0.05 on every seed: met** with ``SurrogateSettings(noise="learned")``; the
+  default (``noise="fixed"``, right for a deterministic simulator) was .114 on seed 0.
+  PyVBMC on this target: not run this session either (a run was started and stopped
+  unfinished after 25 min on the shared cores); "never worse than PyVBMC" is still
+  shown on the curved chain only.
+- Curved chain: ``refine_optimism`` (opt-in; ``susp_bo-optimistic`` = 2.0). Diagnosis
+  first (seed 0, the default): at 3 000 exact posterior draws the surrogate is ≥ 5 nats
+  too low at 10 % of them, all in the arms (|x_1| 0.6–2.2 sd), 0.07–0.14 (unit cube) from
+  the nearest evaluation, where the GP's own sd is 2.8–6.1 nats: the GP knows it does
+  not know, but refinement picks among draws of the plug-in posterior, which the
+  too-low arms exclude, and weighs them by exp(E[log L̃]). With κ = 2 the candidates come
+  from the optimistic exp(E[L̃]) posterior too and the weight is exp(E[log L̃] + 2 sd):
+  the share of draws ≥ 5 nats too low falls to 5 %. ``python
+  benchmarks/posterior_accuracy.py --budget-fractions 1.0 --targets curved_chain_5d
+  --methods susp_bo-optimistic susp_bo --seeds 0 1 2``:
+
+      method                seeds 0 / 1 / 2        median / worst   wall time a run
+      susp_bo (default)     .136 / .130 / .160     .136 / .160      370–? s
+      susp_bo-optimistic    .073 / .104 / .153     .104 / .153      350–2 000 s (load)
+
+  (The default's figures on this Intel machine differ from session 7's .116 / .138 / .158
+  on another CPU: the GP's last bits, then the search's path, differ across CPUs.) All six
+  ``not_trusted`` (``not_converged`` with ``poor_mixing`` or ``multimodal``): no silent
+  failure.
+
+  Better on every seed, still **not met** (target <= 0.05 on every seed); kept opt-in
+  because every measured figure of the paired problems (demo, SBC) is the default's, and
+  a default change needs them re-measured.
+
 Oscillator at 50 evaluations over 10 seeds (susp_bo) vs 9 (PyVBMC): mean .0110 vs
 .0106, median .0091 vs .0102 — a tie. Every other cell of susp_bo is below PyVBMC and
 BOLFI; the constant mean ties PyVBMC on the banana at 50 and the Gaussian at 225.
