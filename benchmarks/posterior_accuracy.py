@@ -198,7 +198,7 @@ its own ``--out`` file):
   --methods susp_bo-optimistic susp_bo --seeds 0 1 2``:
 
       method                seeds 0 / 1 / 2        median / worst   wall time a run
-      susp_bo (default)     .136 / .130 / .160     .136 / .160      370–? s
+      susp_bo (default)     .136 / .130 / .160     .136 / .160      156–373 s
       susp_bo-optimistic    .073 / .104 / .153     .104 / .153      350–2 000 s (load)
 
   (The default's figures on this Intel machine differ from session 7's .116 / .138 / .158
