@@ -214,13 +214,13 @@ def test_score_at_the_truth_is_unbiased_and_standard_over_noise_redraws() -> Non
     """B is right for the data at hand: fixed truth and track, only the sensor noise redrawn.
 
     The score of the tool's log L (τ profiled, log-determinant included) at the truth has
-    mean 0, and the one-step posterior z = [I⁻¹ s]_k / sqrt([I⁻¹]_kk) has rms ≈ 1 (a
-    little below: the profiled τ and the lowest bands' conservative variance). Measured by
-    ``benchmarks/paired_noise_check.py`` over 40 SBC truths x 150 draws. 80 draws here:
-    a mean has sd 0.11, so |mean| < 0.4 is a 3.5 sd band; rms in [0.7, 1.2] (sd ≈ 0.08).
-    With τ fixed at 0 the same holds; a model that assumes half the noise (B's variance
-    ≈ 1/4 of the truth's) then gives z rms > 1.5: the check sees a wrong B. (With τ
-    profiled, that wrong B is rescued: τ absorbs the missing variance, z rms < 1.)
+    mean 0, and the one-step posterior z = [I⁻¹ s]_k / sqrt([I⁻¹]_kk) has rms ≈ 1 (I is
+    B's information with τ = 0, so where the profiled τ > 0 this z understates the
+    posterior's: measured 0.79–0.94 with τ profiled, 0.93–1.06 with τ fixed at 0).
+    ``benchmarks/paired_noise_check.py`` does this over 40 SBC truths x 150 draws. 80 draws
+    here: a mean has sd 0.11, so |mean| < 0.4 is a 3.5 sd band; rms in [0.7, 1.2]. With τ
+    fixed, a model that assumes half the noise (B's variance ≈ 1/4 of the truth's) gives
+    z rms > 1.5 (measured 1.8–2.1): the check sees a wrong B.
     """
     for profile in (True, False):
         score, z = _noise_redraw_scores(0.01, draws=80, profile=profile)
@@ -229,8 +229,6 @@ def test_score_at_the_truth_is_unbiased_and_standard_over_noise_redraws() -> Non
         assert np.all((rms > 0.7) & (rms < 1.2)), (profile, rms)
     _, z_wrong = _noise_redraw_scores(0.005, draws=40, profile=False)
     assert np.median(np.sqrt(np.mean(z_wrong**2, axis=0))) > 1.5
-    _, z_rescued = _noise_redraw_scores(0.005, draws=40, profile=True)
-    assert np.all(np.sqrt(np.mean(z_rescued**2, axis=0)) < 1.2)
 
 
 def test_fisher_information_needs_noise_and_matching_shapes() -> None:
