@@ -109,7 +109,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
-from fast_path import FastPathProblem, Options, demo_settings  # noqa: E402
+from fast_path import FastPathProblem, Options, demo_settings, sbc_draw  # noqa: E402
 from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 from scipy import stats  # noqa: E402
 
@@ -135,8 +135,8 @@ def reference_experiment(options: Options, experiment: int) -> dict[str, Any]:
     started = time.perf_counter()
     spec = load_rig_spec(DEMO_RIG)
     bounds = spec.calibration_bounds
-    rng = np.random.default_rng([options.seed, experiment, 11])
-    truth = bounds[0] + rng.uniform(size=bounds.shape[1]) * (bounds[1] - bounds[0])
+    u_true, _ = sbc_draw(options.seed, experiment, bounds.shape[1])
+    truth = bounds[0] + u_true * (bounds[1] - bounds[0])
     lap = laplace_reference(
         options, {"experiment": experiment, "truth": truth.tolist(), "best_w": truth.tolist()}
     )
@@ -171,9 +171,8 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
     spec = load_rig_spec(DEMO_RIG)
     names = spec.calibration_names
     bounds = spec.calibration_bounds
-    rng = np.random.default_rng([options.seed, experiment, 11])
-    truth = bounds[0] + rng.uniform(size=len(names)) * (bounds[1] - bounds[0])
-    seed = int(np.random.SeedSequence([options.seed, experiment, 13]).generate_state(1)[0])
+    u_true, seed = sbc_draw(options.seed, experiment, len(names))
+    truth = bounds[0] + u_true * (bounds[1] - bounds[0])
     problem = FastPathProblem(spec, dict(zip(names, truth.tolist())), options, seed)
     settings = demo_settings(options, experiment)
 
@@ -282,9 +281,7 @@ def laplace_reference(options: Options, record: dict[str, Any]) -> dict[str, Any
     lower, upper = spec.calibration_bounds
     span = upper - lower
     truth = np.asarray(record["truth"])
-    seed = int(
-        np.random.SeedSequence([options.seed, record["experiment"], 13]).generate_state(1)[0]
-    )
+    _, seed = sbc_draw(options.seed, record["experiment"], len(names))
     problem = FastPathProblem(spec, dict(zip(names, truth.tolist())), options, seed)
     error = problem.error
     if not isinstance(error, PairedOutputError):

@@ -62,6 +62,7 @@ from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+from fast_path import sbc_draw  # noqa: E402
 from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 
 from susp_bo.calibration.study import (  # noqa: E402
@@ -82,9 +83,9 @@ NOISE_M_S2 = 0.005  # the demo's sensor noise
 
 
 def truth_of(seed: int, experiment: int, bounds: np.ndarray) -> np.ndarray:
-    """(q,) truth of one experiment, uniform on C_w (the prior)."""
-    rng = np.random.default_rng([seed, experiment, 11])
-    return bounds[0] + rng.uniform(size=bounds.shape[1]) * (bounds[1] - bounds[0])
+    """(q,) truth of one experiment, uniform on C_w (the prior; the fast path's draw)."""
+    u_true, _ = sbc_draw(seed, experiment, bounds.shape[1])
+    return bounds[0] + u_true * (bounds[1] - bounds[0])
 
 
 def truth_log_likelihood(config, truth: np.ndarray) -> float:
@@ -107,7 +108,7 @@ def run_experiment(out: Path, seed: int, experiment: int, workers: int) -> dict[
     data = folder / "data"
     if not any(data.glob("run_*.h5")):
         data.mkdir(parents=True, exist_ok=True)
-        data_seed = int(np.random.SeedSequence([seed, experiment, 13]).generate_state(1)[0])
+        _, data_seed = sbc_draw(seed, experiment, len(names))
         runs = synthesize_runs(
             spec, dict(zip(names, truth.tolist())), nu=NU, seed=data_seed, noise_m_s2=NOISE_M_S2
         )

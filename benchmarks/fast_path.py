@@ -131,13 +131,14 @@ class FastPathProblem:
         true_spec = spec.with_parameters(truth)
         rig = LinearisedRig(true_spec)
         profile = SpeedProfile.constant(sim.speed_m_s, sim.warm_up_s + sim.duration_s)
-        measured, tracks, n_samples = [], [], []
+        measured, tracks, n_samples, clean = [], [], [], []
         for index in range(options.nu):
             geometry = synthetic_track(true_spec, seed=track_seed(seed, index))
             response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / self.rate)
-            signals = np.array(response.accelerations_m_s2, dtype=np.float64)
+            clean.append(np.array(response.accelerations_m_s2, dtype=np.float64))
+            signals = clean[-1]
             if options.noise > 0:
-                signals += np.random.default_rng([seed, index, 2]).normal(
+                signals = signals + np.random.default_rng([seed, index, 2]).normal(
                     0.0, options.noise, signals.shape
                 )
             spectra = log_amplitude_spectra(signals, self.rate, response.channels, spec.spectrum)
@@ -145,6 +146,8 @@ class FastPathProblem:
             tracks.append(TrackRun(f"run{index:03d}", geometry, profile))
             n_samples.append(signals.shape[1])
         self.measured = np.stack(measured)
+        self.clean_signals = tuple(clean)  # (ν,) noise-free (C x n_t) m/s², run i on track i
+        self.channels = tuple(response.channels)
         self.tracks = tuple(tracks)
         self.error: PairedOutputError | OutputError
         if options.error == "paired":

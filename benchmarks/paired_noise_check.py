@@ -86,26 +86,10 @@ from fast_path import FastPathProblem, Options, laplace_at_truth, sbc_draw
 
 from susp_bo.calibration.paired_error import PairedOutputError, paired_log_likelihood
 from susp_bo.commands.demo import DEMO_RIG
-from susp_bo.data.synthetic import track_seed
-from susp_bo.rig.linear import LinearisedRig
-from susp_bo.rig.simulator import synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.spectra import log_amplitude_spectra
 
 STEP = 1e-4  # central-difference step, fraction of C_w
-
-
-def clean_signals(spec: RigSpec, truth: dict[str, float], nu: int, data_seed: int) -> list:
-    """(ν,) noise-free sensor signals (C x n_t, m/s²) of the truth on the SBC's tracks."""
-    true_spec = spec.with_parameters(truth)
-    rig = LinearisedRig(true_spec)
-    sim = spec.simulation
-    out = []
-    for index in range(nu):
-        geometry = synthetic_track(true_spec, seed=track_seed(data_seed, index))
-        response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / sim.sample_rate_hz)
-        out.append((np.array(response.accelerations_m_s2, dtype=np.float64), response.channels))
-    return out
 
 
 def experiment_check(
@@ -122,13 +106,12 @@ def experiment_check(
     shifted, info = laplace_at_truth(problem, bounds, u_true, STEP)
     covariance = np.linalg.inv(info)
     rate = spec.simulation.sample_rate_hz
-    signals = clean_signals(spec, truth, options.nu, data_seed)
 
     def measured(rng_for_run) -> np.ndarray:
         return np.stack([
             log_amplitude_spectra(s + rng_for_run(i).normal(0.0, options.noise, s.shape),
-                                  rate, channels, spec.spectrum).log_amplitude
-            for i, (s, channels) in enumerate(signals)
+                                  rate, problem.channels, spec.spectrum).log_amplitude
+            for i, s in enumerate(problem.clean_signals)
         ])  # fmt: skip
 
     def one_step(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -26,12 +26,11 @@ from fast_path import FastPathProblem, Options, laplace_at_truth, sbc_draw
 
 from susp_bo.calibration.rank_uniformity import pooled_rank_ks
 from susp_bo.commands.demo import DEMO_RIG
-from susp_bo.rig.spec import load_rig_spec
+from susp_bo.rig.spec import RigSpec, load_rig_spec
 
 
-def laplace_correlation(options: Options, experiment: int) -> np.ndarray:
+def laplace_correlation(spec: RigSpec, options: Options, experiment: int) -> np.ndarray:
     """(q x q) B's Laplace posterior correlation at experiment ``experiment``'s truth."""
-    spec = load_rig_spec(DEMO_RIG)
     names, bounds = spec.calibration_names, spec.calibration_bounds
     u_true, data_seed = sbc_draw(options.seed, experiment, len(names))
     truth = dict(zip(names, (bounds[0] + u_true * (bounds[1] - bounds[0])).tolist()))
@@ -61,9 +60,10 @@ def main(argv: list[str] | None = None) -> int:
     records = [r for r in records if "quantile" in r]
     if not records:
         parser.error(f"--out: {args.out}/experiments holds no finished experiment")
+    spec = load_rig_spec(DEMO_RIG)
     correlations = []
     for r in records:
-        correlations.append(laplace_correlation(options, int(r["experiment"])))
+        correlations.append(laplace_correlation(spec, options, int(r["experiment"])))
         print(f"sbc_rank_dependence: experiment {r['experiment']}", file=sys.stderr, flush=True)
     corr = np.array(correlations)
     quantiles = np.array([r["quantile"] for r in records])
