@@ -30,6 +30,7 @@ from botorch.acquisition.logei import qLogExpectedImprovement
 from botorch.optim import optimize_acqf
 from botorch.sampling.normal import SobolQMCNormalSampler
 
+from susp_bo.calibration.sampling import Estimator, sample_surrogate_posterior
 from susp_bo.calibration.surrogate import Surrogate
 
 logger = logging.getLogger(__name__)
@@ -98,6 +99,50 @@ def propose_ei_batch(
         logger.debug("EI optimisation: %s: %s", w.category.__name__, w.message)
     rel = math.exp(float(value)) / max(spread, 1e-300)
     return cand.detach(), rel
+
+
+def posterior_candidates(
+    surrogate: Surrogate, count: int, estimator: Estimator, seed: int
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(post, wide)``: ``count`` draws of the surrogate posterior and ``count`` widened
+    ones (draws plus Gaussian noise of the draws' marginal sd, clipped), unit cube.
+
+    32 chains, 300 warm-up steps, seeded by ``seed`` (deterministic).
+    """
+    chains = 32
+    steps = max(1, math.ceil(2 * count / chains))
+    draws, _ = sample_surrogate_posterior(
+        surrogate,
+        n_chains=chains,
+        warmup_steps=300,
+        num_samples=steps,
+        seed=seed,
+        estimator=estimator,
+    )
+    flat = draws.transpose(0, 1).reshape(-1, surrogate.dim)
+    gen = torch.Generator().manual_seed(seed)
+    pick = torch.randperm(flat.shape[0], generator=gen)[: 2 * count]
+    post, wide = flat[pick[:count]], flat[pick[count:]]
+    sd = flat.std(0).clamp_min(1e-3)
+    wide = (wide + sd * torch.randn(wide.shape, generator=gen, dtype=torch.float64)).clamp(0, 1)
+    return post, wide
+
+
+def refinement_candidates(
+    surrogate: Surrogate, count: int, estimator: Estimator, optimism: float, seed: int
+) -> tuple[torch.Tensor, int]:
+    """Candidates of :func:`select_uncertainty_batch` and how many lead as posterior draws.
+
+    Posterior draws plus their widened copy; with ``optimism`` > 0 (and an estimator other
+    than ``expected``) the widened copy is replaced by draws of the optimistic posterior
+    exp(E[L̃]), which grows where the GP is unsure: candidates in regions the plug-in
+    posterior does not visit.
+    """
+    post, wide = posterior_candidates(surrogate, count, estimator, seed)
+    if optimism > 0.0 and estimator != "expected":
+        extra, _ = posterior_candidates(surrogate, count, "expected", seed + 1)
+        return torch.cat([post, extra]), post.shape[0]
+    return torch.cat([post, wide]), post.shape[0]
 
 
 def select_uncertainty_batch(

@@ -45,13 +45,18 @@ import logging
 import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 
-from susp_bo.calibration.acquisition import propose_ei_batch, select_uncertainty_batch
+from susp_bo.calibration.acquisition import (
+    posterior_candidates,
+    propose_ei_batch,
+    refinement_candidates,
+    select_uncertainty_batch,
+)
 from susp_bo.calibration.basin_search import ClimbReport, basin_phase
 from susp_bo.calibration.design import (
     check_bounds,
@@ -127,42 +132,10 @@ def _evaluate(evaluate: Evaluate, w: np.ndarray) -> np.ndarray:
 def _refinement_candidates(
     surrogate: Surrogate, settings: CalibrationSettings, seed: int
 ) -> tuple[torch.Tensor, int]:
-    """Posterior draws of the current surrogate plus a widened copy (unit cube).
-
-    With ``settings.refine_optimism`` > 0 the widened copy is replaced by draws of the
-    optimistic surrogate posterior exp(E[L̃]) (the ``expected`` estimator, which grows
-    where the GP is unsure): candidates in regions the plug-in posterior does not visit.
-    """
-    post, wide, n_post = _posterior_candidates(surrogate, settings, seed)
-    if settings.refine_optimism > 0.0 and settings.estimator != "expected":
-        optimistic = replace(settings, estimator="expected")
-        extra, _, _ = _posterior_candidates(surrogate, optimistic, seed + 1)
-        return torch.cat([post, extra]), n_post
-    return torch.cat([post, wide]), n_post
-
-
-def _posterior_candidates(
-    surrogate: Surrogate, settings: CalibrationSettings, seed: int
-) -> tuple[torch.Tensor, torch.Tensor, int]:
-    """``(post, wide, m)``: m surrogate posterior draws and m widened ones (unit cube)."""
-    m = settings.candidate_count
-    chains = 32
-    steps = max(1, math.ceil(2 * m / chains))
-    draws, _ = sample_surrogate_posterior(
-        surrogate,
-        n_chains=chains,
-        warmup_steps=300,
-        num_samples=steps,
-        seed=seed,
-        estimator=settings.estimator,
+    """:func:`.acquisition.refinement_candidates` with the settings' count, estimator, optimism."""
+    return refinement_candidates(
+        surrogate, settings.candidate_count, settings.estimator, settings.refine_optimism, seed
     )
-    flat = draws.transpose(0, 1).reshape(-1, surrogate.dim)
-    gen = torch.Generator().manual_seed(seed)
-    pick = torch.randperm(flat.shape[0], generator=gen)[: 2 * m]
-    post, wide = flat[pick[:m]], flat[pick[m:]]
-    sd = flat.std(0).clamp_min(1e-3)
-    wide = (wide + sd * torch.randn(wide.shape, generator=gen, dtype=torch.float64)).clamp(0, 1)
-    return post, wide, post.shape[0]
 
 
 def _fit(
@@ -375,10 +348,9 @@ def _propose_check(
 ) -> tuple[torch.Tensor, np.ndarray, np.ndarray, np.ndarray]:
     """Edge points of the current surrogate posterior, the predictions and noise sd there."""
     surrogate = _fit(x, y, bounds, settings, _CHECK, boxed, laplace)
-    candidates, n_post = _refinement_candidates(
-        surrogate, settings, _seed(settings.seed, _CHECK, 3)
+    post, _ = posterior_candidates(
+        surrogate, settings.candidate_count, settings.estimator, _seed(settings.seed, _CHECK, 3)
     )
-    post = candidates[:n_post]
     u = edge_points(post, surrogate_log_likelihood(surrogate, settings.estimator)(post), size)
     mean, sd = surrogate.log_likelihood_uncertainty(u)
     return u, mean.numpy(), sd.numpy(), observation_noise_sd(surrogate, u)
