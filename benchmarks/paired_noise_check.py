@@ -166,11 +166,12 @@ def summary(names: tuple[str, ...], records: list[dict], draws: int) -> str:
     p_values = np.array([
         stats.kstest(special.ndtr(-z).ravel(), "uniform").pvalue for z in streams
     ])  # fmt: skip
+    own_p = stats.kstest(special.ndtr(-own_z).ravel(), "uniform").pvalue
     lines.append(
         f"pooled KS of B's Laplace quantiles, {len(p_values)} noise streams of {n} data sets: "
         f"p < 0.05 in {np.mean(p_values < 0.05):.0%} ({np.sum(p_values < 0.05)}), median p "
-        f"{np.median(p_values):.2f}; the SBC's own draws: p "
-        f"{stats.kstest(special.ndtr(-own_z).ravel(), 'uniform').pvalue:.3f}"
+        f"{np.median(p_values):.2f}; the SBC's own draws: p {own_p:.3f} (below the p of "
+        f"{np.sum(p_values > own_p)} of the {len(p_values)} streams)"
     )
     return "\n".join(lines)
 

@@ -33,6 +33,12 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from susp_bo.numerics import pin_code_paths
+
+# Before NumPy, SciPy or torch load: the same code paths, so the same bits, on every
+# x86-64 CPU with AVX2 (susp_bo.numerics; SUSP_BO_NATIVE_NUMERICS=1 turns it off).
+pin_code_paths()
+
 __version__ = "0.1.0"
 
 _EXPORTS: dict[str, str] = {

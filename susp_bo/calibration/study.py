@@ -73,6 +73,7 @@ from susp_bo.calibration.study_inputs import (
 from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
+from susp_bo.numerics import numerics_in_effect
 from susp_bo.output_folder import check_output_folder
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
@@ -395,6 +396,7 @@ def result_payload(
         "seed": study.config.seeds.calibration,
         "wall_time_s": wall_time_s,
         "version": __version__,
+        "numerics": numerics_in_effect(),
     }
     return payload
 

@@ -1,0 +1,183 @@
+"""The same floating-point result on any x86-64 machine: pinned CPU code paths.
+
+NumPy, OpenBLAS (NumPy's and SciPy's BLAS/LAPACK), MKL (torch's BLAS/LAPACK), oneDNN
+and torch's own vectorised kernels each pick, at run time, the fastest code for the CPU
+they run on (AVX-512 on one machine, AVX2 on another). Those code paths sum in a
+different order, so the last bits of a result differ; a Bayesian-optimisation loop
+then evaluates slightly different points, and the printed posterior can change in its
+last digit from one machine to another (measured, README "Set-up"). Measured on one
+Intel Xeon (AVX-512), each library alone changes the bits of a small calibration or of
+the measured spectra when its code path is switched (session 9, README).
+
+:func:`pin_code_paths` sets, before those libraries load, the environment variables that
+fix each library's path to one that every x86-64 CPU with AVX2 and FMA (x86-64-v3: Intel
+since 2013, AMD since 2015) runs identically:
+
+=========================  ===============  ==========================================
+variable                   value            library
+=========================  ===============  ==========================================
+``ATEN_CPU_CAPABILITY``    ``avx2``         torch's vectorised kernels
+``MKL_CBWR``               ``COMPATIBLE``   MKL (torch's BLAS/LAPACK): conditional
+                                            numerical reproducibility, one code path
+                                            on Intel and AMD
+``ONEDNN_MAX_CPU_ISA``     ``AVX2``         oneDNN (torch)
+``OPENBLAS_CORETYPE``      ``Haswell``      OpenBLAS (NumPy's and SciPy's)
+``NPY_DISABLE_CPU_FEATURES``  AVX-512 targets  NumPy's dispatched kernels (only where the
+                                            CPU has AVX-512; the names depend on the
+                                            NumPy version)
+=========================  ===============  ==========================================
+
+``import susp_bo`` calls it (the ``susp-bo`` command always imports it first, and so do
+Dask workers, which inherit the environment). A value already set in the environment is
+kept; ``SUSP_BO_NATIVE_NUMERICS=1`` turns the pinning off (the libraries' own choice:
+faster on some CPUs, machine-dependent last bits). A program that imports NumPy or
+torch *before* susp_bo loads them unpinned: :func:`numerics_in_effect` says what is in
+effect, and ``result.json["numerics"]`` records it with every result.
+
+What is not covered: other CPU families (ARM, POWER: nothing is pinned there), CPUs
+without AVX2, and the C library's scalar ``exp``/``log`` (the same within one Linux
+distribution release; may differ between distributions).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+from collections.abc import MutableMapping
+from importlib import metadata
+from typing import Any, Literal
+
+OPT_OUT = "SUSP_BO_NATIVE_NUMERICS"
+"""Environment variable: ``1`` leaves every library's code path to the library."""
+
+PINNED_CODE_PATHS: dict[str, str] = {
+    "ATEN_CPU_CAPABILITY": "avx2",
+    "MKL_CBWR": "COMPATIBLE",
+    "ONEDNN_MAX_CPU_ISA": "AVX2",
+    "OPENBLAS_CORETYPE": "Haswell",
+}
+"""The library switches set on every x86-64-v3 CPU (module docstring)."""
+
+_X86 = {"x86_64", "amd64"}
+
+
+def numpy_avx512_targets(numpy_version: str) -> str:
+    """NumPy's dispatch-target names above AVX2 for ``numpy_version`` (space separated).
+
+    NumPy 2.4 groups its x86 targets as X86_V2/V3/V4 plus AVX512_ICL/SPR; earlier
+    versions name each AVX-512 family. Unknown names are ignored by NumPy 2.4.
+    """
+    major, minor = (int(part) for part in numpy_version.split(".")[:2])
+    if (major, minor) >= (2, 4):
+        return "X86_V4 AVX512_ICL AVX512_SPR"
+    return "AVX512F AVX512CD AVX512_KNL AVX512_KNM AVX512_SKX AVX512_CLX AVX512_CNL " + (
+        "AVX512_ICL AVX512_SPR"
+    )
+
+
+def cpu_flags() -> frozenset[str] | None:
+    """The CPU's feature flags from ``/proc/cpuinfo`` (Linux), None where unknown."""
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as handle:
+            for line in handle:
+                if line.startswith("flags"):
+                    return frozenset(line.split(":", 1)[1].split())
+    except OSError:
+        return None
+    return None
+
+
+def pin_code_paths(
+    environ: MutableMapping[str, str] | None = None,
+    *,
+    machine: str | None = None,
+    flags: frozenset[str] | Literal["detect"] | None = "detect",
+    numpy_version: str | None = None,
+) -> dict[str, str]:
+    """Set the pinned code paths in ``environ`` where they are not set; return what was set.
+
+    Nothing is set when ``SUSP_BO_NATIVE_NUMERICS=1``, on a CPU that is not x86-64, or
+    where the CPU's flags are unknown or lack AVX2 or FMA.
+
+    Args:
+        environ: the environment to change (default: ``os.environ``, which child
+            processes inherit).
+        machine: ``platform.machine()`` (default: this machine's).
+        flags: the CPU's feature flags, None where unknown (default ``"detect"``:
+            :func:`cpu_flags`).
+        numpy_version: the installed NumPy's version (default: read from its metadata,
+            without importing it).
+    """
+    env = os.environ if environ is None else environ
+    if env.get(OPT_OUT, "") == "1":
+        return {}
+    if (machine if machine is not None else platform.machine()).lower() not in _X86:
+        return {}
+    if flags == "detect":
+        flags = cpu_flags()
+    if flags is None or not {"avx2", "fma"} <= flags:
+        return {}
+    wanted = dict(PINNED_CODE_PATHS)
+    if "avx512f" in flags:
+        if numpy_version is None:
+            try:
+                numpy_version = metadata.version("numpy")
+            except metadata.PackageNotFoundError:
+                numpy_version = None
+        if numpy_version is not None:
+            wanted["NPY_DISABLE_CPU_FEATURES"] = numpy_avx512_targets(numpy_version)
+    applied = {}
+    for name, value in wanted.items():
+        if name not in env:
+            env[name] = value
+            applied[name] = value
+    return applied
+
+
+def numerics_in_effect() -> dict[str, Any]:
+    """What the numerical libraries actually run with (imports NumPy and torch).
+
+    Returns ``{"machine_independent": bool, "torch_cpu_capability": str,
+    "numpy_simd_above_avx2": [names], "openblas_core": [names], "environment":
+    {variable: value or None}}``; ``machine_independent`` is true when every pinned code
+    path is in effect (see the module docstring for what that does not cover).
+    """
+    import numpy as np
+    import torch
+    from threadpoolctl import threadpool_info
+
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:  # NumPy < 2
+        from numpy.core._multiarray_umath import (  # type: ignore[no-redef]
+            __cpu_dispatch__,
+            __cpu_features__,
+        )
+    high = [
+        name
+        for name in __cpu_dispatch__
+        if __cpu_features__.get(name) and ("AVX512" in name or name == "X86_V4")
+    ]
+    cores = sorted({
+        str(pool.get("architecture"))
+        for pool in threadpool_info()
+        if pool.get("internal_api") == "openblas"
+    })  # fmt: skip
+    capability = str(torch.backends.cpu.get_cpu_capability())
+    variables = [*PINNED_CODE_PATHS, "NPY_DISABLE_CPU_FEATURES", OPT_OUT]
+    environment = {name: os.environ.get(name) for name in variables}
+    pinned = (
+        capability == "AVX2"
+        and not high
+        and all(core.lower() == "haswell" for core in cores)
+        and all(os.environ.get(k) == v for k, v in PINNED_CODE_PATHS.items())
+    )
+    return {
+        "machine_independent": bool(pinned),
+        "torch_cpu_capability": capability,
+        "numpy_simd_above_avx2": high,
+        "openblas_core": cores,
+        "numpy": np.__version__,
+        "torch": torch.__version__,
+        "environment": environment,
+    }
