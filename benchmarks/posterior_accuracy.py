@@ -15,6 +15,9 @@ known) and each budget, this script runs in the same process:
   made batch-parallel;
 - ``susp_bo-noise``: the default with ``SurrogateSettings(noise="learned")`` (the GP
   fits an observation noise of log L; for a stochastic simulator);
+- ``susp_bo-known-noise``: the same with the noise held at 1 nat
+  (``noise_prior_width=0.02`` around the default ``noise_sd_guess`` of 1 nat, which is
+  the noisy target's noise sd): the information PyVBMC gets on that target;
 - ``susp_bo-optimistic``: the default with ``refine_optimism=2.0`` (refinement candidates
   from the optimistic posterior exp(E[L̃]), weight exp(E[log L̃] + 2 sd − max));
 - ``pyvbmc``: PyVBMC (Acerbi's VBMC) at ``max_fun_evals`` = the same budget, on the
@@ -420,6 +423,7 @@ def _runners(batch_size: int) -> dict[str, Callable[[], Runner]]:
         "susp_bo-ego": lambda: run_susp_bo(replace(base, refine=False, max_ego_fraction=1.0)),
         "susp_bo-constmean": with_surrogate(mean="constant"),
         "susp_bo-noise": with_surrogate(noise="learned"),
+        "susp_bo-known-noise": with_surrogate(noise="learned", noise_prior_width=0.02),
         "susp_bo-optimistic": lambda: run_susp_bo(replace(base, refine_optimism=2.0)),
         "pyvbmc": lambda: run_pyvbmc,
         "bolfi": lambda: run_bolfi,

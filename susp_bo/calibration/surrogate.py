@@ -127,9 +127,13 @@ class SurrogateSettings:
             "learned": a homoscedastic observation noise of log L fitted with the other
             hyperparameters (a stochastic simulator, e.g. log L from a finite number of
             random track realisations), under a log-normal prior on its variance centred
-            at ``noise_sd_guess`` and a factor e² wide (one prior sd) — see the module
-            docstring.
+            at ``noise_sd_guess``, ``noise_prior_width`` wide (default 2: a factor e² in
+            variance per prior sd) — see the module docstring.
         noise_sd_guess: centre of the learned noise's prior, sd of log L in nats (> 0).
+        noise_prior_width: sd of that log-normal prior on the log of the noise variance
+            (> 0; default 2, a factor e² either way). A small width (e.g. 0.05) holds the
+            noise at ``noise_sd_guess``: a noise level known beforehand (say, from
+            replicate runs at one point) rather than fitted.
     """
 
     transform: Transform = "none"
@@ -138,6 +142,7 @@ class SurrogateSettings:
     mean: MeanKind = "auto"
     noise: NoiseKind = "fixed"
     noise_sd_guess: float = 1.0
+    noise_prior_width: float = 2.0
 
     def __post_init__(self) -> None:
         if self.transform not in ("auto", "log_deficit", "none"):
@@ -154,6 +159,8 @@ class SurrogateSettings:
             raise ValueError(f"noise: {self.noise!r}, expected 'fixed' or 'learned'")
         if not self.noise_sd_guess > 0.0:
             raise ValueError(f"noise_sd_guess: {self.noise_sd_guess} must be > 0 nats")
+        if not self.noise_prior_width > 0.0:
+            raise ValueError(f"noise_prior_width: {self.noise_prior_width} must be > 0")
 
 
 @dataclass(frozen=True)
@@ -483,11 +490,6 @@ def _fit_one(
     return Surrogate(model, warping, train_x, y, learned_noise=settings.noise == "learned")
 
 
-_NOISE_PRIOR_WIDTH = 2.0
-"""sd of the log-normal prior on the learned noise variance (log units: a factor e² ≈ 7.4
-in variance, e ≈ 2.7 in sd, per prior sd)."""
-
-
 def _learned_noise_likelihood(
     settings: SurrogateSettings, warping: OutputWarping, z_var: float
 ) -> GaussianLikelihood:
@@ -502,7 +504,7 @@ def _learned_noise_likelihood(
     guess = (settings.noise_sd_guess * slope) ** 2 / z_var
     guess = max(guess, 1e-7)
     likelihood = GaussianLikelihood(
-        noise_prior=LogNormalPrior(math.log(guess), _NOISE_PRIOR_WIDTH),
+        noise_prior=LogNormalPrior(math.log(guess), settings.noise_prior_width),
         noise_constraint=GreaterThan(1e-8),
     )
     likelihood.noise = torch.tensor(guess, dtype=torch.float64)
