@@ -13,19 +13,19 @@ the measured spectra when its code path is switched (session 9, README).
 fix each library's path to one that every x86-64 CPU with AVX2 and FMA (x86-64-v3: Intel
 since 2013, AMD since 2015) runs identically:
 
-=========================  ===============  ==========================================
-variable                   value            library
-=========================  ===============  ==========================================
-``ATEN_CPU_CAPABILITY``    ``avx2``         torch's vectorised kernels
-``MKL_CBWR``               ``COMPATIBLE``   MKL (torch's BLAS/LAPACK): conditional
-                                            numerical reproducibility, one code path
-                                            on Intel and AMD
-``ONEDNN_MAX_CPU_ISA``     ``AVX2``         oneDNN (torch)
-``OPENBLAS_CORETYPE``      ``Haswell``      OpenBLAS (NumPy's and SciPy's)
-``NPY_DISABLE_CPU_FEATURES``  AVX-512 targets  NumPy's dispatched kernels (only where the
-                                            CPU has AVX-512; the names depend on the
-                                            NumPy version)
-=========================  ===============  ==========================================
+=============================  ===============  ======================================
+variable                       value            library
+=============================  ===============  ======================================
+``ATEN_CPU_CAPABILITY``        ``avx2``         torch's vectorised kernels
+``MKL_CBWR``                   ``COMPATIBLE``   MKL (torch's BLAS/LAPACK): conditional
+                                                numerical reproducibility, one code
+                                                path on Intel and AMD
+``ONEDNN_MAX_CPU_ISA``         ``AVX2``         oneDNN (torch)
+``OPENBLAS_CORETYPE``          ``Haswell``      OpenBLAS (NumPy's and SciPy's)
+``NPY_DISABLE_CPU_FEATURES``   AVX-512 targets  NumPy's dispatched kernels (only where
+                                                the CPU has AVX-512; the names depend
+                                                on the NumPy version)
+=============================  ===============  ======================================
 
 ``import susp_bo`` calls it (the ``susp-bo`` command always imports it first, and so do
 Dask workers, which inherit the environment). A value already set in the environment is
@@ -49,6 +49,9 @@ from typing import Any, Literal
 
 OPT_OUT = "SUSP_BO_NATIVE_NUMERICS"
 """Environment variable: ``1`` leaves every library's code path to the library."""
+
+NUMPY_SWITCH = "NPY_DISABLE_CPU_FEATURES"
+"""Environment variable listing NumPy's dispatch targets to leave unused."""
 
 PINNED_CODE_PATHS: dict[str, str] = {
     "ATEN_CPU_CAPABILITY": "avx2",
@@ -125,7 +128,7 @@ def pin_code_paths(
             except metadata.PackageNotFoundError:
                 numpy_version = None
         if numpy_version is not None:
-            wanted["NPY_DISABLE_CPU_FEATURES"] = numpy_avx512_targets(numpy_version)
+            wanted[NUMPY_SWITCH] = numpy_avx512_targets(numpy_version)
     applied = {}
     for name, value in wanted.items():
         if name not in env:
@@ -164,7 +167,7 @@ def numerics_in_effect() -> dict[str, Any]:
         if pool.get("internal_api") == "openblas"
     })  # fmt: skip
     capability = str(torch.backends.cpu.get_cpu_capability())
-    variables = [*PINNED_CODE_PATHS, "NPY_DISABLE_CPU_FEATURES", OPT_OUT]
+    variables = [*PINNED_CODE_PATHS, NUMPY_SWITCH, OPT_OUT]
     environment = {name: os.environ.get(name) for name in variables}
     pinned = (
         capability == "AVX2"
