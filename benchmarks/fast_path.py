@@ -98,25 +98,34 @@ def sbc_draw(seed: int, experiment: int, q: int) -> tuple[np.ndarray, int]:
 
 def laplace_at_truth(
     problem: FastPathProblem, bounds: np.ndarray, u_true: np.ndarray, step: float = 1e-4
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Spectra at u_true ± step e_k and B's Fisher information there (unit-cube coordinates,
     :func:`~susp_bo.calibration.paired_error.paired_fisher_information`); paired model only.
 
-    Returns ``(shifted, information)``: (2q x ν x C x F) spectra (plus steps first, then
-    minus) and the (q x q) information matrix.
+    A truth within ``step`` of a face of the unit cube is differenced one-sidedly on that
+    side (the shifted point is the face), so no spectrum is asked for outside C_w.
+
+    Returns ``(shifted, information, width)``: (2q x ν x C x F) spectra (plus steps first,
+    then minus), the (q x q) information matrix and the (q,) distance between each plus
+    and minus point (2 step, less at a face): a difference quotient divides by it.
     """
     from susp_bo.calibration.paired_error import paired_fisher_information
 
     q = len(u_true)
     span = bounds[1] - bounds[0]
-    steps = step * np.eye(q)
-    shifted = problem.spectra(bounds[0] + np.vstack([u_true + steps, u_true - steps]) * span)
+    plus = np.minimum(u_true + step, 1.0)
+    minus = np.maximum(u_true - step, 0.0)
+    interior = (u_true + step <= 1.0) & (u_true - step >= 0.0)
+    width = np.where(interior, 2 * step, plus - minus)  # 2 step exactly, as before
+    eye = np.eye(q, dtype=bool)
+    points = np.vstack([np.where(eye, plus[None, :], u_true[None, :]),
+                        np.where(eye, minus[None, :], u_true[None, :])])  # fmt: skip
+    shifted = problem.spectra(bounds[0] + points * span)
     h = problem.spectra((bounds[0] + u_true * span)[None])[0]
     assert isinstance(problem.error, PairedOutputError)
-    information = paired_fisher_information(
-        h, (shifted[:q] - shifted[q:]) / (2 * step), problem.error
-    )
-    return shifted, information
+    jacobian = (shifted[:q] - shifted[q:]) / width.reshape((q,) + (1,) * (shifted.ndim - 1))
+    information = paired_fisher_information(h, jacobian, problem.error)
+    return shifted, information, width
 
 
 class FastPathProblem:

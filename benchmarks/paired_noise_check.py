@@ -103,7 +103,7 @@ def experiment_check(
     problem = FastPathProblem(spec, truth, options, data_seed)
     error = problem.error
     assert isinstance(error, PairedOutputError)
-    shifted, info = laplace_at_truth(problem, bounds, u_true, STEP)
+    shifted, info, width = laplace_at_truth(problem, bounds, u_true, STEP)
     covariance = np.linalg.inv(info)
     rate = spec.simulation.sample_rate_hz
 
@@ -116,7 +116,7 @@ def experiment_check(
 
     def one_step(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ll = paired_log_likelihood(y, shifted, error, exact=True)
-        score = (ll[:q] - ll[q:]) / (2 * STEP)
+        score = (ll[:q] - ll[q:]) / width
         return score / np.sqrt(np.diag(info)), covariance @ score / np.sqrt(np.diag(covariance))
 
     own = measured(lambda i: np.random.default_rng([data_seed, i, 2]))

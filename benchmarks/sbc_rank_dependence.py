@@ -35,7 +35,7 @@ def laplace_correlation(spec: RigSpec, options: Options, experiment: int) -> np.
     u_true, data_seed = sbc_draw(options.seed, experiment, len(names))
     truth = dict(zip(names, (bounds[0] + u_true * (bounds[1] - bounds[0])).tolist()))
     problem = FastPathProblem(spec, truth, options, data_seed)
-    _, information = laplace_at_truth(problem, bounds, u_true)
+    _, information, _ = laplace_at_truth(problem, bounds, u_true)
     covariance = np.linalg.inv(information)
     sd = np.sqrt(np.diag(covariance))
     correlation = covariance / np.outer(sd, sd)
