@@ -6,7 +6,7 @@ same seed and data, typically on two machines, or on one machine under different
 - ``result.json``: every key except those that describe the run rather than the result
   (``wall_time_s``, the data path ``data``); numbers compared bit for bit, and for each
   key that differs the largest relative difference of its numbers;
-- ``posterior_samples.npy``: bit for bit (SHA-256), else the largest absolute difference
+- ``posterior_samples.npy``: bit for bit (SHA-256), else the largest relative difference
   in posterior sd;
 - ``result.json["numerics"]["machine_independent"]`` of each side, since a run whose CPU
   code paths were not pinned (``susp_bo/numerics.py``) is not expected to match across
