@@ -21,8 +21,10 @@
    all within the budget ``max_evaluations``;
 4. MH sampling of the surrogate posterior and summaries (:mod:`.mcmc`, :mod:`.posterior`).
 
+One step of 2–3 (refit, then propose a batch or stop) is :func:`.loop_step.propose_step`.
+
 Before the first evaluation the budget is checked against what q needs
-(:func:`.reliability.budget_requirement`); a smaller one raises
+(:func:`.budget.budget_requirement`); a smaller one raises
 :class:`BudgetTooSmallError` unless ``settings.allow_small_budget``. After the MCMC
 the result gets its reliability verdict (:func:`.reliability.assess`).
 
@@ -43,21 +45,14 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 import torch
 
-from susp_bo.calibration.acquisition import (
-    posterior_candidates,
-    propose_ei_batch,
-    refinement_candidates,
-    select_uncertainty_batch,
-)
 from susp_bo.calibration.basin_search import ClimbReport, basin_phase
+from susp_bo.calibration.budget import BudgetTooSmallError, budget_message, budget_requirement
 from susp_bo.calibration.design import (
     check_bounds,
     default_design_size,
@@ -67,188 +62,31 @@ from susp_bo.calibration.design import (
 )
 from susp_bo.calibration.iteration_record import PhaseRecorder, record_iteration
 from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator, local_search
-from susp_bo.calibration.posterior import summarize
-from susp_bo.calibration.reliability import (
-    assess,
-    budget_message,
-    budget_requirement,
+from susp_bo.calibration.loop_step import (
+    FINAL_ITERATION,
+    Evaluate,
+    Laplace,
+    derived_seed,
+    evaluate_checked,
+    fit_in_box,
+    propose_check,
+    propose_step,
+    torch_threads,
 )
+from susp_bo.calibration.posterior import summarize
+from susp_bo.calibration.reliability import assess
 from susp_bo.calibration.result import CalibrationResult, IterationReport, Phase
 from susp_bo.calibration.sampling import (
     sample_surrogate_posterior,
     surrogate_log_likelihood,
 )
 from susp_bo.calibration.settings import CalibrationSettings
-from susp_bo.calibration.surrogate import Bowl, Surrogate, fit_surrogate
-from susp_bo.calibration.surrogate_check import (
-    SurrogateCheck,
-    edge_points,
-    observation_noise_sd,
-)
-from susp_bo.calibration.trust_region import box_edge, next_box, to_global_unit, training_mask
+from susp_bo.calibration.surrogate import Surrogate
+from susp_bo.calibration.surrogate_check import SurrogateCheck
+from susp_bo.calibration.trust_region import box_edge, to_global_unit
 from susp_bo.progress import progress_bar
 
 logger = logging.getLogger(__name__)
-
-Evaluate = Callable[[np.ndarray], np.ndarray]
-_FINAL = 1_000_000  # iteration index used to seed the final fit and MCMC
-_CHECK = 2_000_000  # iteration index used to seed the surrogate check
-
-
-@contextmanager
-def torch_threads(n: int | None) -> Iterator[None]:
-    """Temporarily sets torch's intra-op thread count (None: unchanged)."""
-    if n is None:
-        yield
-        return
-    previous = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
-
-
-def _seed(master: int, iteration: int, purpose: int) -> int:
-    return int(np.random.SeedSequence([master, iteration, purpose]).generate_state(1)[0])
-
-
-def _impute(y: np.ndarray) -> np.ndarray:
-    if np.any(y == math.inf):
-        raise ValueError("evaluate: returned +inf, which is not a valid log-likelihood")
-    finite = np.isfinite(y)
-    if not finite.any():
-        raise RuntimeError("every log L evaluation failed (NaN/-inf): nothing to fit")
-    return np.where(finite, y, np.min(y[finite]))
-
-
-def _evaluate(evaluate: Evaluate, w: np.ndarray) -> np.ndarray:
-    out = np.asarray(evaluate(np.array(w, dtype=np.float64)), dtype=np.float64).reshape(-1)
-    if out.shape != (w.shape[0],):
-        raise ValueError(f"evaluate: returned shape {out.shape}, expected ({w.shape[0]},)")
-    return np.where(out == -math.inf, np.nan, out)
-
-
-def _refinement_candidates(
-    surrogate: Surrogate, settings: CalibrationSettings, seed: int
-) -> tuple[torch.Tensor, int]:
-    """:func:`.acquisition.refinement_candidates` with the settings' count, estimator, optimism."""
-    return refinement_candidates(
-        surrogate, settings.candidate_count, settings.estimator, settings.refine_optimism, seed
-    )
-
-
-def _fit(
-    x: np.ndarray,
-    y: np.ndarray,
-    box: np.ndarray,
-    settings: CalibrationSettings,
-    iteration: int,
-    boxed: bool = False,
-    laplace: Laplace | None = None,
-) -> Surrogate:
-    """The surrogate in ``box``'s unit cube, seeded by ``iteration``.
-
-    Fitted on every evaluation so far (failures imputed) or, with a trust region, on those
-    in and near the box (:func:`.trust_region.training_mask`), when ``boxed``. With the
-    local phase's Laplace approximation, that bowl is the GP's fixed prior mean.
-    """
-    y = _impute(y)
-    if boxed:
-        # with the Laplace bowl as the mean, far points (thousands of nats below it) only
-        # inflate the GP's scale: keep the box's neighbourhood, at least q + 2 points
-        q = x.shape[1]
-        keep = training_mask(x, box, min_points=q + 2 if laplace is not None else 2 * q + 2)
-        x, y = x[keep], y[keep]
-    bowl = None if laplace is None else laplace.bowl(box)
-    return fit_surrogate(
-        to_unit(x, box), y, settings.surrogate, _seed(settings.seed, iteration, 1), bowl
-    )
-
-
-@dataclass(frozen=True)
-class _Step:
-    phase: Phase
-    proposal: torch.Tensor | None
-    criterion: float
-    stop_reason: str
-    box: np.ndarray
-
-
-def _propose(
-    x: np.ndarray,
-    y: np.ndarray,
-    bounds: np.ndarray,
-    box: np.ndarray,
-    phase: Phase,
-    size: int,
-    iteration: int,
-    ego_exhausted: bool,
-    settings: CalibrationSettings,
-    boxed: bool,
-    laplace: Laplace | None = None,
-) -> _Step:
-    """Refits the surrogate and proposes the next batch (None when a stopping rule fires).
-
-    With a trust region, every refinement step may move the search box first
-    (:func:`.trust_region.next_box`); the returned step carries the box its proposal is in.
-    """
-    seed = settings.seed
-    surrogate = _fit(x, y, box, settings, iteration, boxed, laplace)
-    if phase == "ego":
-        u, criterion = propose_ei_batch(
-            surrogate,
-            size,
-            _seed(seed, iteration, 2),
-            settings.acquisition_restarts,
-            settings.acquisition_raw_samples,
-        )
-        converged = criterion < settings.ei_tolerance
-        if not (converged or ego_exhausted):
-            return _Step("ego", u, criterion, "", box)
-        if not settings.refine:
-            return _Step("ego", None, criterion, "ego_converged" if converged else "budget", box)
-    candidates, n_post = _refinement_candidates(surrogate, settings, _seed(seed, iteration, 3))
-    if boxed:
-        finite = np.isfinite(y)
-        best = x[finite][int(np.argmax(y[finite]))]
-        moved = next_box(
-            candidates[:n_post].numpy(), box, bounds, best, settings.trust_region_half_width_sd
-        )
-        if moved is not None:
-            logger.info("search box: %s", np.array2string(moved, precision=4))
-            box = moved
-            surrogate = _fit(x, y, box, settings, iteration, boxed, laplace)
-            candidates, n_post = _refinement_candidates(
-                surrogate, settings, _seed(seed, iteration, 3)
-            )
-    u, criterion = select_uncertainty_batch(
-        surrogate, candidates, size, n_post, optimism=settings.refine_optimism
-    )
-    if criterion < settings.refine_tolerance:
-        return _Step("refine", None, criterion, "converged", box)
-    return _Step("refine", u, criterion, "", box)
-
-
-@dataclass(frozen=True)
-class Laplace:
-    """The local phase's Laplace approximation in physical units: mode (q,), covariance (q x q)."""
-
-    mode: np.ndarray
-    covariance: np.ndarray
-
-    @classmethod
-    def of(cls, local: LocalSearchResult, bounds: np.ndarray) -> Laplace:
-        """From the local phase's unit-cube result and C_w's bounds."""
-        span = bounds[1] - bounds[0]
-        return cls(bounds[0] + local.mode * span, local.covariance * np.outer(span, span))
-
-    def bowl(self, box: np.ndarray) -> Bowl:
-        """The bowl −½ (v − c)ᵀ P (v − c) in ``box``'s unit cube (v)."""
-        width = box[1] - box[0]
-        cov = self.covariance / np.outer(width, width)
-        precision = np.linalg.inv(cov)
-        return Bowl((self.mode - box[0]) / width, 0.5 * (precision + precision.T))
 
 
 def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -275,11 +113,11 @@ def _run_basin_phase(
 
     def fit(x_unit: np.ndarray, values: np.ndarray) -> Surrogate:
         # the same data as (x_unit, values), as evaluated (no unit-cube round trip)
-        return _fit(data.x, data.y, bounds, settings, data.iteration + 1)
+        return fit_in_box(data.x, data.y, bounds, settings, data.iteration + 1)
 
     def run(u: np.ndarray) -> np.ndarray:
         w = from_unit(u, bounds)
-        values = _evaluate(evaluate, w)
+        values = evaluate_checked(evaluate, w)
         finite = values[np.isfinite(values)]
         data.add("basin", w, values, float(finite.max()) if finite.size else math.nan)
         return values
@@ -293,7 +131,7 @@ def _run_basin_phase(
             settings.basin,
             fit,
             run,
-            lambda: _seed(settings.seed, data.iteration + 1, 6),
+            lambda: derived_seed(settings.seed, data.iteration + 1, 6),
             settings.acquisition_restarts,
             settings.acquisition_raw_samples,
         )
@@ -331,29 +169,6 @@ def _run_local_phase(
 
     result = local_search(evaluate, bounds, start, cap, on_evaluations=record)
     return data.x, data.y, result, data.iteration
-
-
-class BudgetTooSmallError(ValueError):
-    """The budget leaves no room for refinement and the check (raised before any evaluation)."""
-
-
-def _propose_check(
-    x: np.ndarray,
-    y: np.ndarray,
-    bounds: np.ndarray,
-    size: int,
-    settings: CalibrationSettings,
-    boxed: bool,
-    laplace: Laplace | None = None,
-) -> tuple[torch.Tensor, np.ndarray, np.ndarray, np.ndarray]:
-    """Edge points of the current surrogate posterior, the predictions and noise sd there."""
-    surrogate = _fit(x, y, bounds, settings, _CHECK, boxed, laplace)
-    post, _ = posterior_candidates(
-        surrogate, settings.candidate_count, settings.estimator, _seed(settings.seed, _CHECK, 3)
-    )
-    u = edge_points(post, surrogate_log_likelihood(surrogate, settings.estimator)(post), size)
-    mean, sd = surrogate.log_likelihood_uncertainty(u)
-    return u, mean.numpy(), sd.numpy(), observation_noise_sd(surrogate, u)
 
 
 def calibrate(
@@ -425,7 +240,7 @@ def calibrate(
                 f"initial_points: shape {extra.shape}; expected (m x {q}) with m < {n0}"
             )
         x = space_filling_design(
-            n0 - len(extra), b, _seed(settings.seed, 0, 0), settings.design_method
+            n0 - len(extra), b, derived_seed(settings.seed, 0, 0), settings.design_method
         )
         x = np.vstack([x, np.clip(extra, b[0], b[1])])
     else:
@@ -439,7 +254,7 @@ def calibrate(
         n0 = x.shape[0]
         n_check = min(settings.check_points, budget - n0)
         main_budget = budget - n_check
-    y = _evaluate(evaluate, x)
+    y = evaluate_checked(evaluate, x)
     bar.update(n0)
     box = b.copy()
     phase: Phase = "ego"
@@ -462,7 +277,7 @@ def calibrate(
         iteration += 1
         size = min(settings.batch_size, main_budget - x.shape[0])
         with torch_threads(settings.num_threads):
-            step = _propose(
+            step = propose_step(
                 x,
                 y,
                 b,
@@ -504,16 +319,16 @@ def calibrate(
             stop_reason = step.stop_reason
             break
         w_new = from_unit(step.proposal.numpy(), box)
-        y_new = _evaluate(evaluate, w_new)
+        y_new = evaluate_checked(evaluate, w_new)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(size)
         record_iteration(iteration, phase, x, y, step.criterion, history, on_iteration)
     check = None
     if n_check > 0:
         with torch_threads(settings.num_threads):
-            u, predicted, sd, noise = _propose_check(x, y, box, n_check, settings, boxed, laplace)
+            u, predicted, sd, noise = propose_check(x, y, box, n_check, settings, boxed, laplace)
         w_new = from_unit(u.numpy(), box)
-        y_new = _evaluate(evaluate, w_new)
+        y_new = evaluate_checked(evaluate, w_new)
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(n_check)
@@ -521,16 +336,16 @@ def calibrate(
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
     with torch_threads(settings.num_threads):
-        surrogate = _fit(x, y, box, settings, _FINAL, boxed, laplace)
+        surrogate = fit_in_box(x, y, box, settings, FINAL_ITERATION, boxed, laplace)
         draws_u, diag = sample_surrogate_posterior(
             surrogate,
             n_chains=settings.mcmc_chains,
             warmup_steps=settings.mcmc_warmup,
             num_samples=settings.mcmc_samples,
             seed=(
-                _seed(settings.seed, _FINAL, 4)
+                derived_seed(settings.seed, FINAL_ITERATION, 4)
                 if settings.mcmc_seed is None
-                else _seed(settings.mcmc_seed, _FINAL, 5)
+                else derived_seed(settings.mcmc_seed, FINAL_ITERATION, 5)
             ),
             estimator=settings.estimator,
             backend=settings.mcmc_backend,

@@ -12,7 +12,7 @@ Rules (each a pure function of numbers, testable alone):
   the loop's own structure — a design of max(10, 5 q) points (or the configured
   one when larger), one refinement batch and the held-out check. Below that the
   study and the command line refuse to start unless explicitly allowed
-  (:func:`budget_requirement` names the minimum).
+  (:func:`.budget.budget_requirement` names the minimum).
 - ``not_converged`` (:func:`not_converged`): the search did not reach the
   optimum — the best observed log L lies more than ``gap_tolerance`` nats plus
   ``z`` GP standard deviations below the surrogate's predicted maximum (its value
@@ -69,7 +69,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from susp_bo.calibration.design import default_design_size
+from susp_bo.calibration.budget import BudgetRequirement, budget_too_small
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
 Verdict = Literal["trusted", "not_trusted"]
@@ -149,82 +149,6 @@ class Reliability:
             sentence=str(data.get("sentence", "")),
             evidence=dict(data.get("evidence", {})),
         )
-
-
-# -- budget ---------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class BudgetRequirement:
-    """The smallest budget the loop's structure needs for q parameters.
-
-    Attributes:
-        q: number of calibrated parameters.
-        design: design points needed: max(configured design, max(10, 5 q)).
-        batch: one refinement batch (``batch_size``).
-        check: held-out check points (``check_points``).
-    """
-
-    q: int
-    design: int
-    batch: int
-    check: int
-
-    @property
-    def minimum(self) -> int:
-        """design + batch + check evaluations."""
-        return self.design + self.batch + self.check
-
-    def describe(self) -> str:
-        """'56 for q = 7 parameters (a design of 40 + one refinement batch of 8 + ...)'."""
-        check = f" + {self.check} check points" if self.check else ""
-        return (
-            f"{self.minimum} for q = {self.q} parameters (a design of {self.design}"
-            f" + one refinement batch of {self.batch}{check})"
-        )
-
-
-def budget_requirement(
-    q: int, initial_design: int | None, batch_size: int, check_points: int
-) -> BudgetRequirement:
-    """The minimum budget for q parameters given the loop settings.
-
-    Args:
-        q: number of calibrated parameters.
-        initial_design: configured design size (None: the loop's default max(10, 5 q)).
-        batch_size: points per refinement batch.
-        check_points: held-out check points.
-    """
-    design = max(int(initial_design or 0), default_design_size(q))
-    return BudgetRequirement(int(q), design, int(batch_size), int(check_points))
-
-
-def budget_message(
-    budget: int,
-    requirement: BudgetRequirement,
-    flag: str = "--budget",
-    override: str = "pass --allow-small-budget",
-) -> str:
-    """The refusal message: names ``flag``, the value, the minimum and the override."""
-    return (
-        f"{flag} {budget} is below the minimum {requirement.describe()}: no room to refine "
-        f"the search and check the surrogate; give {flag} {requirement.minimum} or more, or "
-        f"{override} to run anyway (the result is then marked not trusted)"
-    )
-
-
-def budget_too_small(budget: int, requirement: BudgetRequirement) -> Reason | None:
-    """``budget_too_small`` when ``budget`` < the requirement's minimum."""
-    if budget >= requirement.minimum:
-        return None
-    return {
-        "code": "budget_too_small",
-        "message": (
-            f"the budget of {budget} evaluations is below the minimum {requirement.describe()}"
-        ),
-        "budget": int(budget),
-        "minimum": requirement.minimum,
-    }
 
 
 # -- convergence ----------------------------------------------------------------------------

@@ -62,7 +62,7 @@ class CalibrationSettings:
         allow_small_budget: run even when ``max_evaluations`` is below the minimum the
             loop needs for q parameters (a design of max(10, 5 q) or the configured one
             when larger, one batch, the check points:
-            :func:`susp_bo.calibration.reliability.budget_requirement`). False (default):
+            :func:`susp_bo.calibration.budget.budget_requirement`). False (default):
             :func:`calibrate` refuses such a budget before any evaluation; True: it runs
             and the verdict is ``not_trusted`` with ``budget_too_small``.
         trust_region: refine in a search box that follows the posterior

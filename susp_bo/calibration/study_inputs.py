@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from susp_bo.calibration.reliability import budget_message, budget_requirement
+from susp_bo.calibration.budget import budget_message, budget_requirement
 from susp_bo.data.measured import MeasuredRun
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.curving import reference_specific_force
@@ -151,7 +151,7 @@ def check_budget(config: StudyConfig, q: int) -> None:
 
     Raises:
         StudyError: naming ``--budget`` (``budget.max_evaluations``), the value and the
-            minimum (:func:`susp_bo.calibration.reliability.budget_requirement`).
+            minimum (:func:`susp_bo.calibration.budget.budget_requirement`).
     """
     budget = config.budget
     requirement = budget_requirement(

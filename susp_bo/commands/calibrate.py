@@ -117,7 +117,7 @@ def _refuse_small_budget(config: StudyConfig, budget: int, design: int) -> None:
     Raises:
         UsageError: naming --budget, the value and the minimum.
     """
-    from susp_bo.calibration.reliability import budget_message, budget_requirement
+    from susp_bo.calibration.budget import budget_message, budget_requirement
 
     q = _calibrated_count(config)
     if q is None:

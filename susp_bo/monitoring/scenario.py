@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
-from susp_bo.calibration.reliability import budget_requirement
+from susp_bo.calibration.budget import budget_requirement
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.monitoring.alarms import CampaignRecord, apply_alarms

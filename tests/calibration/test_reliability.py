@@ -13,8 +13,6 @@ from susp_bo.calibration.reliability import (
     Reliability,
     at_bound,
     below_expected_fit,
-    budget_requirement,
-    budget_too_small,
     multimodal,
     not_converged,
     poor_mixing,
@@ -24,20 +22,6 @@ from susp_bo.calibration.surrogate_check import SurrogateCheck
 from susp_bo.calibration.test_functions import TARGETS
 
 # -- the rules alone ----------------------------------------------------------------------------
-
-
-def test_budget_minimum_follows_the_loop_structure() -> None:
-    # q = 7 with the loop's defaults: a design of 35, one batch of 4, 8 check points
-    loop = budget_requirement(7, None, 4, 8)
-    assert (loop.design, loop.minimum) == (35, 47)
-    # the command line's defaults (design 40, batches of 8, 8 check points): 40 is the design
-    cli = budget_requirement(7, 40, 8, 8)
-    assert cli.minimum == 56 and "q = 7" in cli.describe()
-    reason = budget_too_small(40, cli)
-    assert reason is not None and reason["minimum"] == 56 and "40" in reason["message"]
-    assert budget_too_small(56, cli) is None
-    # a configured design smaller than q needs does not lower the minimum
-    assert budget_requirement(7, 3, 8, 8).minimum == 51
 
 
 def _converged(**kw: object) -> dict:

@@ -1,0 +1,95 @@
+"""The smallest budget a calibration can be run with: refused below it, named in the refusal.
+
+The loop needs room for its own structure: a space-filling design of max(10, 5 q)
+points (or the configured one when larger), one refinement batch and the held-out
+check of the surrogate. :func:`budget_requirement` gives that minimum for q
+parameters and the loop settings; the loop (:func:`.loop.calibrate`), the study and
+the command line refuse a smaller budget before any simulation with
+:func:`budget_message` unless explicitly allowed, and the reliability verdict then
+carries :func:`budget_too_small` (:mod:`.reliability`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from susp_bo.calibration.design import default_design_size
+
+
+class BudgetTooSmallError(ValueError):
+    """The budget leaves no room for refinement and the check (raised before any evaluation)."""
+
+
+@dataclass(frozen=True)
+class BudgetRequirement:
+    """The smallest budget the loop's structure needs for q parameters.
+
+    Attributes:
+        q: number of calibrated parameters.
+        design: design points needed: max(configured design, max(10, 5 q)).
+        batch: one refinement batch (``batch_size``).
+        check: held-out check points (``check_points``).
+    """
+
+    q: int
+    design: int
+    batch: int
+    check: int
+
+    @property
+    def minimum(self) -> int:
+        """design + batch + check evaluations."""
+        return self.design + self.batch + self.check
+
+    def describe(self) -> str:
+        """'56 for q = 7 parameters (a design of 40 + one refinement batch of 8 + ...)'."""
+        check = f" + {self.check} check points" if self.check else ""
+        return (
+            f"{self.minimum} for q = {self.q} parameters (a design of {self.design}"
+            f" + one refinement batch of {self.batch}{check})"
+        )
+
+
+def budget_requirement(
+    q: int, initial_design: int | None, batch_size: int, check_points: int
+) -> BudgetRequirement:
+    """The minimum budget for q parameters given the loop settings.
+
+    Args:
+        q: number of calibrated parameters.
+        initial_design: configured design size (None: the loop's default max(10, 5 q)).
+        batch_size: points per refinement batch.
+        check_points: held-out check points.
+    """
+    design = max(int(initial_design or 0), default_design_size(q))
+    return BudgetRequirement(int(q), design, int(batch_size), int(check_points))
+
+
+def budget_message(
+    budget: int,
+    requirement: BudgetRequirement,
+    flag: str = "--budget",
+    override: str = "pass --allow-small-budget",
+) -> str:
+    """The refusal message: names ``flag``, the value, the minimum and the override."""
+    return (
+        f"{flag} {budget} is below the minimum {requirement.describe()}: no room to refine "
+        f"the search and check the surrogate; give {flag} {requirement.minimum} or more, or "
+        f"{override} to run anyway (the result is then marked not trusted)"
+    )
+
+
+def budget_too_small(budget: int, requirement: BudgetRequirement) -> dict[str, Any] | None:
+    """The reliability reason ``budget_too_small`` (``code``, ``message``, the numbers) when
+    ``budget`` < the requirement's minimum, else None."""
+    if budget >= requirement.minimum:
+        return None
+    return {
+        "code": "budget_too_small",
+        "message": (
+            f"the budget of {budget} evaluations is below the minimum {requirement.describe()}"
+        ),
+        "budget": int(budget),
+        "minimum": requirement.minimum,
+    }
