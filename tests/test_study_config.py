@@ -168,6 +168,16 @@ BAD_EDITS = [
     ("local = true", "local = 1", r"search\.local: 1 is not allowed; expected true or false"),
     ("local = true", "locale = true", r"search\.locale: unknown key \(did you mean 'local'"),
     ("basins = true", 'basins = "yes"', r"search\.basins: 'yes' is not allowed; expected true"),
+    (
+        "refine_optimism = 0.0",
+        "refine_optimism = -1",
+        r"search\.refine_optimism: -1 is not allowed; expected a finite number >= 0",
+    ),
+    (
+        "refine_optimism = 0.0",
+        "refine_optimism = nan",
+        r"search\.refine_optimism: nan is not allowed; expected a finite number >= 0",
+    ),
 ]
 
 

@@ -287,6 +287,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         allow_small_budget=config.budget.allow_small,
         local_search=config.search.local,
         basin_search=config.search.basins,
+        refine_optimism=config.search.refine_optimism,
     )
 
 
