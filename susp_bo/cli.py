@@ -181,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
     """The exceptions that mean bad input (exit code 2, one message, no traceback)."""
-    from susp_bo.calibration.study import StudyError
+    from susp_bo.calibration.study_inputs import StudyError
     from susp_bo.data.measured import MeasuredDataError
     from susp_bo.store import StoreMismatchError
 

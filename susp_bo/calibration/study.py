@@ -2,7 +2,8 @@
 
 This is what ``susp-bo calibrate`` (and ``susp-bo demo``) runs. Everything is
 checked before the first simulation (rig, parameter names, measured runs
-against the rig's channels and band, the output folder and its store), then:
+against the rig's channels and band, the output folder and its store;
+:func:`.study_preparation.prepare_study`), then:
 
 1. the measured spectra y_exp,i (ν x C x F) and the track stretches x_j are
    taken from the runs (μ = ν: each measured run's geometry and speed is one
@@ -20,7 +21,7 @@ against the rig's channels and band, the output folder and its store), then:
    ``result.json["reliability"]`` and at the end of the log (the commands print its
    sentence last).
 
-A budget below what the q parameters need (:func:`check_budget`) is refused before
+A budget below what the q parameters need (:func:`.study_inputs.check_budget`) is refused before
 any simulation unless ``budget.allow_small`` (``--allow-small-budget``) is set; then
 the study runs and its verdict is ``not_trusted`` with ``budget_too_small``.
 
@@ -32,24 +33,18 @@ equals that of an uninterrupted run.
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
 import sys
 import time
 from concurrent.futures import Executor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from susp_bo import __version__
-from susp_bo.calibration.evaluation import LikelihoodEvaluator, TrackRun
-from susp_bo.calibration.likelihood import (
-    OutputError,
-    estimate_output_error,
-)
+from susp_bo.calibration.evaluation import LikelihoodEvaluator
 from susp_bo.calibration.likelihood import (
     expected_log_likelihood_at_truth as expected_at_truth_under,
 )
@@ -61,191 +56,26 @@ from susp_bo.calibration.loop import (
 )
 from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.study_inputs import (
-    StudyError,
-    check_budget,
-    check_runs_rig,
-    design_removal,
-    import_hint,
-    reference_parameters,
-    sensor_noise,
     store_mismatch,
 )
-from susp_bo.data.measured import MeasuredRun, load_runs, validate_run
+from susp_bo.calibration.study_preparation import (
+    STORE_NAME,
+    PreparedStudy,
+    prepare_study,
+    store_fingerprint,
+)
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect
-from susp_bo.output_folder import check_output_folder
-from susp_bo.rig.simulator import axle_span_m
-from susp_bo.rig.spec import RigSpec, load_rig_spec
-from susp_bo.store import EvaluationStore, StoreMismatchError, study_fingerprint
+from susp_bo.rig.spec import RigSpec
+from susp_bo.store import EvaluationStore, StoreMismatchError
 from susp_bo.study_config import StudyConfig
 
-STORE_NAME = "evaluations.sqlite"
 RESULT_NAME = "result.json"
 CONFIG_NAME = "study.toml"
 LOG_NAME = "study.log"
 SAMPLES_NAME = "posterior_samples.npy"
 MAX_SAVED_SAMPLES = 20_000
-
-
-@dataclass(frozen=True)
-class PreparedStudy:
-    """Everything a study needs, checked, before any simulation runs.
-
-    Attributes:
-        config: the study config.
-        spec: the rig (non-calibrated parameters fixed at the rig file's values).
-        names: calibrated parameter names (q,).
-        bounds: (2 x q) admissible set C_w.
-        runs: the ν measured runs (channels in the rig's order).
-        measured: (ν x C x F) measured log-amplitude spectra.
-        tracks: the μ track stretches.
-        error: the output error model B (paired or unpaired).
-        noise_m_s2: accelerometer noise (m/s² rms) added to simulated spectra as a floor.
-        reference: (q,) true parameters when the data are synthetic, else None.
-    """
-
-    config: StudyConfig
-    spec: RigSpec
-    names: tuple[str, ...]
-    bounds: np.ndarray
-    runs: tuple[MeasuredRun, ...]
-    measured: np.ndarray
-    tracks: tuple[TrackRun, ...]
-    error: OutputError | PairedOutputError
-    noise_m_s2: float
-    reference: np.ndarray | None
-
-    @property
-    def units(self) -> tuple[str, ...]:
-        """(q,) units of the calibrated parameters."""
-        unit = {c.name: c.unit for c in self.spec.calibration}
-        return tuple(unit[name] for name in self.names)
-
-    @property
-    def frequencies_hz(self) -> np.ndarray:
-        """(F,) the shared frequency grid."""
-        return self.spec.spectrum.frequencies_hz()
-
-
-def _output_error(
-    config: StudyConfig,
-    measured: np.ndarray,
-    channels: tuple[str, ...],
-    runs: tuple[MeasuredRun, ...] = (),
-    spec: RigSpec | None = None,
-    noise_m_s2: float = 0.0,
-) -> OutputError | PairedOutputError:
-    sigma = config.output_error.sigma
-    ell = config.output_error.correlation_length_hz
-    if config.output_error.model == "paired":
-        if spec is None or not runs:
-            raise StudyError("output_error.model: 'paired' needs the runs and the rig")
-        fixed = None
-        if isinstance(sigma, int | float):
-            fixed = tuple(float(sigma) for _ in channels)
-        elif sigma != "estimate":
-            missing = [c for c in channels if c not in sigma]
-            if missing:
-                raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
-            fixed = tuple(float(sigma[c]) for c in channels)
-        return PairedOutputError(
-            noise_m_s2,
-            runs[0].sample_rate_hz,
-            tuple(int(run.accelerations_m_s2.shape[-1]) for run in runs),
-            spec.spectrum,
-            fixed,
-        )
-    if sigma == "estimate":
-        if measured.shape[0] < 2:
-            raise StudyError(
-                "output_error.sigma: 'estimate' needs at least 2 measured runs (found 1); "
-                "give sigma as a number or a {channel = sigma} table"
-            )
-        estimated = estimate_output_error(measured)
-        return OutputError(estimated.sigma, ell)
-    if isinstance(sigma, int | float):
-        return OutputError(tuple(float(sigma) for _ in channels), ell)
-    missing = [c for c in channels if c not in sigma]
-    if missing:
-        raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
-    return OutputError(tuple(float(sigma[c]) for c in channels), ell)
-
-
-def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
-    """Check every input of a study and load its data (no simulation).
-
-    Raises:
-        StudyError: naming what is wrong (rig, parameters, data, output folder).
-    """
-    try:
-        spec = load_rig_spec(config.rig)
-        names = config.check_parameters(spec.calibration_names)
-        check_output_folder(config.out, "out")
-    except (FileNotFoundError, ValueError) as error:
-        raise StudyError(str(error)) from error
-    check_budget(config, len(names))
-    store_path = config.out / STORE_NAME
-    if store_path.exists() and not resume:
-        raise StudyError(
-            f"out: {config.out} already holds a study ({STORE_NAME}); resume it with --resume "
-            "or choose another output folder"
-        )
-    if resume and not store_path.exists():
-        raise StudyError(f"--resume: {store_path} does not exist; nothing to resume")
-    try:
-        runs = tuple(load_runs(config.data, channels=spec.channels))
-        for index, run in enumerate(runs):
-            validate_run(
-                run,
-                spec.channels,
-                spec.spectrum,
-                axle_span_m=axle_span_m(spec),
-                source=f"{config.data}/run {index}",
-            )
-    except ValueError as error:
-        raise StudyError(f"data: {error}{import_hint(config.data)}") from error
-    check_runs_rig(runs, spec.name, config.data)
-    try:
-        measured = np.stack(
-            [run.spectra(spec.spectrum, design_removal(spec, run)).log_amplitude for run in runs]
-        )
-    except ValueError as error:
-        raise StudyError(f"data: {error}") from error
-    tracks = tuple(
-        TrackRun(f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed, run.design)
-        for index, run in enumerate(runs)
-    )
-    all_names = spec.calibration_names
-    columns = [all_names.index(name) for name in names]
-    bounds = spec.calibration_bounds[:, columns]
-    noise = sensor_noise(config, runs)
-    return PreparedStudy(
-        config=config,
-        spec=spec,
-        names=tuple(names),
-        bounds=bounds,
-        runs=runs,
-        measured=measured,
-        tracks=tracks,
-        error=_output_error(config, measured, spec.channels, runs, spec, noise),
-        noise_m_s2=noise,
-        reference=reference_parameters(runs, tuple(names)),
-    )
-
-
-def store_fingerprint(
-    study: PreparedStudy, spec: RigSpec | None = None, names: tuple[str, ...] | None = None
-) -> dict[str, str]:
-    """What identifies the evaluations of ``study`` (or of ``spec``/``names`` on its data)."""
-    return study_fingerprint(
-        (spec or study.spec).fingerprint(),
-        json.dumps([t.track_id for t in study.tracks]),
-        names or study.names,
-        output_error=json.dumps(dataclasses.asdict(study.error)),
-        output_error_model=study.config.output_error.model,
-        sensor_noise_m_s2=repr(study.noise_m_s2),
-    )
 
 
 def study_evaluator(

@@ -7,7 +7,8 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from susp_bo.calibration.study import StudyError, run_study
+from susp_bo.calibration.study import run_study
+from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import checked_output_folder
 from susp_bo.study_config import (

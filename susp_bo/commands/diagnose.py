@@ -123,12 +123,11 @@ def _study_recalibration(
     from susp_bo.calibration.design import default_design_size
     from susp_bo.calibration.loop import calibrate
     from susp_bo.calibration.study import (
-        STORE_NAME,
         calibration_settings,
         expected_log_likelihood_at_truth,
-        store_fingerprint,
         study_evaluator,
     )
+    from susp_bo.calibration.study_preparation import STORE_NAME, store_fingerprint
     from susp_bo.discrepancy.effects import get_effect, with_effect
     from susp_bo.discrepancy.fitting import Fit
     from susp_bo.execution import make_executor
@@ -248,7 +247,9 @@ def _not_trusted_document(
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run the workflow on ``args.result_dir`` and write ``discrepancy.json`` and figures."""
     from susp_bo.calibration.likelihood import OutputError, estimate_output_error
-    from susp_bo.calibration.study import RESULT_NAME, StudyError, prepare_study
+    from susp_bo.calibration.study import RESULT_NAME
+    from susp_bo.calibration.study_inputs import StudyError
+    from susp_bo.calibration.study_preparation import prepare_study
     from susp_bo.discrepancy.figures import write_figures
     from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator, make_simulator
     from susp_bo.discrepancy.verdict import calibration_reliability

@@ -22,7 +22,8 @@ from susp_bo.commands._common import checked_output_folder, output_folder
 def run_import(args: argparse.Namespace) -> int:
     """Convert, check and write the runs; returns the exit code."""
     from susp_bo.data.collect import read_runs
-    from susp_bo.data.measured import save_run, validate_run
+    from susp_bo.data.measured import save_run
+    from susp_bo.data.run_validation import validate_run
 
     out = checked_output_folder(args.out)
     spec = None

@@ -21,7 +21,7 @@ from susp_bo.data.measured import (
     READABLE_VERSIONS,
     MeasuredDataError,
     MeasuredRun,
-    _nan_problems,
+    nan_problems,
 )
 from susp_bo.rig.design import DESIGN_COMPONENTS, DESIGN_UNITS, TrackDesign
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
@@ -257,9 +257,9 @@ def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
         )
     except ValueError as error:  # includes MeasuredDataError
         raise reader.fail(str(error)) from None
-    nan_problems = [] if allow_nan else _nan_problems(run, run.channels)
-    if nan_problems:
-        raise reader.fail("; ".join(nan_problems))
+    problems = [] if allow_nan else nan_problems(run, run.channels)
+    if problems:
+        raise reader.fail("; ".join(problems))
     if "content_sha256" in file.attrs:
         expected = reader.text(file, "content_sha256")
         if run.content_digest() != expected:

@@ -205,7 +205,7 @@ class MeasuredRun:
             )
         data.setflags(write=False)
         rate = _positive_number("MeasuredRun.sample_rate_hz", self.sample_rate_hz, "Hz")
-        offset = _number("MeasuredRun.time_offset_s", self.time_offset_s, "s")
+        offset = real_number("MeasuredRun.time_offset_s", self.time_offset_s, "s")
         if offset < 0:
             raise MeasuredDataError(f"MeasuredRun.time_offset_s: got {offset} s; must be >= 0 s")
         units = tuple(self.units) if self.units else (SI_ACCELERATION,) * len(channels)
@@ -293,7 +293,7 @@ class MeasuredRun:
                 that cannot resolve the band.
         """
         settings = SpectrumSettings() if settings is None else settings
-        problems = _unit_problems(self, self.channels) + _nan_problems(self, self.channels)
+        problems = unit_problems(self, self.channels) + nan_problems(self, self.channels)
         if problems:
             raise MeasuredDataError("; ".join(problems))
         signals = self.accelerations_m_s2
@@ -341,7 +341,8 @@ class MeasuredRun:
         return digest.hexdigest()
 
 
-def _number(name: str, value: object, unit: str) -> float:
+def real_number(name: str, value: object, unit: str) -> float:
+    """``value`` as a finite float, or :class:`MeasuredDataError` naming ``name`` and ``unit``."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.number)):
         raise MeasuredDataError(f"{name}: got {value!r}; expected a real number ({unit})")
     number = float(value)
@@ -351,13 +352,14 @@ def _number(name: str, value: object, unit: str) -> float:
 
 
 def _positive_number(name: str, value: object, unit: str) -> float:
-    number = _number(name, value, unit)
+    number = real_number(name, value, unit)
     if number <= 0:
         raise MeasuredDataError(f"{name}: got {number} {unit}; must be > 0 {unit}")
     return number
 
 
-def _unit_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
+def unit_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
+    """One problem naming the ``channels`` of ``run`` not in m/s² (none when all are)."""
     wrong = [
         f"{c!r} in {u!r}"
         for c, u in zip(run.channels, run.units)
@@ -368,7 +370,8 @@ def _unit_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
     ] * bool(wrong)
 
 
-def _nan_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
+def nan_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
+    """One problem per channel of ``channels`` with NaN runs: count, samples, longest."""
     problems = []
     for name in channels:
         if name not in run.channels:
@@ -382,69 +385,6 @@ def _nan_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
                 f"at t = {run.time_s[start]:.4g} s"
             )
     return problems
-
-
-def validate_run(
-    run: MeasuredRun,
-    channels: Sequence[str] | None = None,
-    settings: SpectrumSettings | None = None,
-    *,
-    axle_span_m: float = 0.0,
-    source: str = "run",
-) -> None:
-    """Check that a run can feed a rig; raise one error listing every problem found.
-
-    Checks: the required channels are present; their units are m/s²; they hold
-    no NaN runs; the sampling rate exceeds twice ``settings.f_max_hz`` and the
-    record holds one Welch segment; the speed record covers the acceleration
-    record; the track (and the design, when the run has one) covers the distance
-    travelled plus the axle span.
-
-    Args:
-        run: the run.
-        channels: channels the rig expects; None checks all of the run's.
-        settings: spectra settings of the rig; None skips the band checks.
-        axle_span_m: distance from the rearmost to the leading axle (m), >= 0;
-            the track must be at least distance travelled + this long.
-        source: name used in the message (e.g. the file).
-
-    Raises:
-        MeasuredDataError: naming every problem.
-    """
-    wanted = tuple(run.channels if channels is None else channels)
-    problems: list[str] = []
-    missing = [c for c in wanted if c not in run.channels]
-    if missing:
-        problems.append(f"missing channel(s) {missing}; the run has {list(run.channels)}")
-    problems += _unit_problems(run, wanted) + _nan_problems(run, wanted)
-    if settings is not None:
-        try:
-            settings.check_sample_rate(run.sample_rate_hz, run.duration_s)
-        except ValueError as error:
-            problems.append(f"sampling rate or record too short for the band: {error}")
-    span = _number("axle_span_m", axle_span_m, "m")
-    end_s = run.time_offset_s + (run.n_samples - 1) / run.sample_rate_hz
-    if end_s > run.speed.duration_s * (1 + 1e-9):
-        problems.append(
-            f"speed record too short: it covers 0 … {run.speed.duration_s:g} s but the "
-            f"accelerations run to t = {end_s:g} s"
-        )
-    else:
-        needed = float(run.speed.distance_m(end_s)) + span
-        if needed > run.geometry.length_m * (1 + 1e-9):
-            problems.append(
-                f"track shorter than the run: the geometry covers {run.geometry.length_m:g} m "
-                f"but the run travels {needed - span:g} m (+ axle span {span:g} m) = {needed:g} m"
-            )
-        if run.design is not None and (
-            run.design.start_m > 1e-9 or run.design.end_m < needed * (1 - 1e-9)
-        ):
-            problems.append(
-                f"design record does not cover the run: it covers {run.design.start_m:g} … "
-                f"{run.design.end_m:g} m but the run needs 0 … {needed:g} m"
-            )
-    if problems:
-        raise MeasuredDataError(f"{source}: " + "; ".join(problems))
 
 
 def save_run(run: MeasuredRun, path: str | os.PathLike[str]) -> Path:

@@ -38,14 +38,9 @@ from typing import Any
 import numpy as np
 
 from susp_bo import __version__
-from susp_bo.calibration.study import (
-    RESULT_NAME,
-    SAMPLES_NAME,
-    STORE_NAME,
-    StudyError,
-    prepare_study,
-    run_study,
-)
+from susp_bo.calibration.study import RESULT_NAME, SAMPLES_NAME, run_study
+from susp_bo.calibration.study_inputs import StudyError
+from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.monitoring.alarms import (
     ALARM_THRESHOLD,

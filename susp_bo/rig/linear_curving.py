@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,9 +32,7 @@ from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.elements import ElementGroup
 from susp_bo.rig.spec import RigSpec, SensorSpec
 from susp_bo.rig.spectra import SpectrumSettings, welch_psd
-
-if TYPE_CHECKING:
-    from susp_bo.rig.linear import StateSpace
+from susp_bo.rig.state_space import StateSpace
 
 FloatArray = NDArray[np.float64]
 CONTACT_MARGIN = 3.0  # smoothing lengths below the gap counted as contact
@@ -179,7 +176,7 @@ def design_forcing(
 
     Args:
         assembly: the vehicle.
-        system: its :class:`~susp_bo.rig.linear.StateSpace` (same slopes).
+        system: its :class:`~susp_bo.rig.state_space.StateSpace` (same slopes).
         terms: the :class:`~susp_bo.rig.curving.DesignInputs` at the T instants.
         dead_band_slopes: the dead-band slopes the system was built with.
     """
@@ -239,7 +236,7 @@ def design_signals(
 
     Args:
         assembly: the vehicle.
-        system: its :class:`~susp_bo.rig.linear.StateSpace`.
+        system: its :class:`~susp_bo.rig.state_space.StateSpace`.
         design: the line.
         speed_m_s: constant speed (m/s).
         sample_rate_hz: output rate (Hz).

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from susp_bo.calibration.study import design_removal, prepare_study
+from susp_bo.calibration.study_inputs import design_removal
+from susp_bo.calibration.study_preparation import prepare_study
 from susp_bo.data.measured import MeasuredRun, save_run
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.curving import reference_specific_force

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from susp_bo.cli import main
-from susp_bo.data.measured import load_runs, validate_run
+from susp_bo.data.measured import load_runs
+from susp_bo.data.run_validation import validate_run
 
 LINE = """
 [line]

@@ -1,4 +1,4 @@
-"""Tests of susp_bo.data.measured: the MeasuredRun container, validation and the HDF5 format."""
+"""Tests of susp_bo.data.measured: the MeasuredRun container and the HDF5 format."""
 
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ from susp_bo.data.measured import (
     nan_runs,
     runs_channels,
     save_run,
-    validate_run,
 )
+from susp_bo.data.run_validation import validate_run
 from susp_bo.rig.line_file import design_from_segments
 from susp_bo.rig.spectra import SpectrumSettings, log_amplitude_spectra
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
@@ -120,55 +120,6 @@ def test_nan_runs_reconstruct_the_mask(mask: list[bool]) -> None:
     np.testing.assert_array_equal(rebuilt, mask)
     # runs are maximal: separated by at least one valid sample
     assert all(b[0] > a[0] + a[1] for a, b in itertools.pairwise(runs))
-
-
-# --- validate_run ---------------------------------------------------------------------------
-
-
-def test_validate_accepts_a_good_run(small_run: MeasuredRun) -> None:
-    spectrum = SpectrumSettings(f_min_hz=1.0, f_max_hz=20.0, n_frequencies=8, segment_s=2.0)
-    validate_run(small_run, ["carbody_z"], spectrum, axle_span_m=17.5)
-
-
-def test_validate_lists_every_problem(small_run: MeasuredRun) -> None:
-    data = np.array(small_run.accelerations_m_s2)
-    data[0, 100:120] = np.nan
-    data[0, 300] = np.nan
-    broken = MeasuredRun(
-        small_run.geometry,
-        small_run.speed,
-        small_run.channels,
-        data,
-        small_run.sample_rate_hz,
-        units=("m/s^2", "g"),
-    )
-    spectrum = SpectrumSettings(f_min_hz=1.0, f_max_hz=60.0, n_frequencies=8, segment_s=2.0)
-    with pytest.raises(MeasuredDataError) as info:
-        validate_run(
-            broken, ["carbody_z", "bogie_y", "axle_z"], spectrum, axle_span_m=30.0, source="r.h5"
-        )
-    message = str(info.value)
-    assert message.startswith("r.h5: ")
-    assert "missing channel(s) ['axle_z']" in message
-    assert "unit mismatch: 'bogie_y' in 'g'; expected m/s^2" in message
-    assert "'carbody_z' has NaN runs: 2 run(s), 21 samples; longest 0.2 s at t = 1 s" in message
-    assert "Nyquist 50 Hz is not above f_max_hz = 60 Hz" in message
-    assert "track shorter than the run: the geometry covers 100 m" in message
-
-
-def test_validate_record_and_speed_lengths(small_run: MeasuredRun) -> None:
-    spectrum = SpectrumSettings(f_min_hz=0.5, f_max_hz=20.0, n_frequencies=8, segment_s=8.0)
-    with pytest.raises(MeasuredDataError, match=r"duration_s: got 4 s, shorter than one Welch"):
-        validate_run(small_run, settings=spectrum)
-    short_speed = MeasuredRun(
-        small_run.geometry,
-        SpeedProfile.constant(20.0, 2.0),
-        small_run.channels,
-        small_run.accelerations_m_s2,
-        100.0,
-    )
-    with pytest.raises(MeasuredDataError, match=r"speed record too short: it covers 0 … 2 s"):
-        validate_run(short_speed)
 
 
 # --- HDF5 -----------------------------------------------------------------------------------

@@ -9,12 +9,8 @@ import pytest
 
 from susp_bo.calibration.likelihood import OutputError, estimate_output_error
 from susp_bo.calibration.paired_error import PairedOutputError
-from susp_bo.calibration.study import (
-    STORE_NAME,
-    output_error_payload,
-    prepare_study,
-    store_fingerprint,
-)
+from susp_bo.calibration.study import output_error_payload
+from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study, store_fingerprint
 from susp_bo.store import EvaluationStore, StoreMismatchError
 from susp_bo.study_config import OutputErrorConfig, StudyConfig
 from tests.integration.conftest import FAST_PARAMETERS

@@ -8,9 +8,9 @@ import pytest
 from susp_bo.rig.assembly import build_assembly, free_wheelset_assembly
 from susp_bo.rig.contact import klingel_wavelength
 from susp_bo.rig.dynamics import ForceModel
-from susp_bo.rig.linear import state_space
 from susp_bo.rig.simulator import integrate
 from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.state_space import state_space
 from susp_bo.rig.track import AxleExcitation
 from susp_bo.rig.world import VehicleWorld
 

@@ -258,8 +258,8 @@ def test_a_design_shorter_than_the_run_fails_before_any_step(
 
 def test_linear_response_to_the_design_matches_pybullet(short_spec: RigSpec) -> None:
     """S-curve with transitions on smooth track: what remains after the removal, both ways."""
-    from susp_bo.rig.linear import state_space
     from susp_bo.rig.linear_curving import design_signals
+    from susp_bo.rig.state_space import state_space
 
     speed = short_spec.simulation.speed_m_s
     design = design_from_segments(

@@ -6,8 +6,8 @@ import numpy as np
 
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.dynamics import ForceModel
-from susp_bo.rig.linear import state_space
 from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.state_space import state_space
 
 
 def _random_state(assembly, rng, scale: float):

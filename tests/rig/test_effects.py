@@ -9,8 +9,9 @@ import pytest
 
 from susp_bo.rig import effects
 from susp_bo.rig.assembly import build_assembly
-from susp_bo.rig.linear import LinearisedRig, sensor_transfer, state_space
+from susp_bo.rig.linear import LinearisedRig
 from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.state_space import sensor_transfer, state_space
 
 
 def test_unknown_effect_is_an_error_before_simulation(reference_spec: RigSpec) -> None:
