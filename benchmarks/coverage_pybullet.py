@@ -65,12 +65,8 @@ import numpy as np  # noqa: E402
 from fast_path import sbc_draw  # noqa: E402
 from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 
-from susp_bo.calibration.study import (  # noqa: E402
-    prepare_study,
-    run_study,
-    store_fingerprint,
-    study_evaluator,
-)
+from susp_bo.calibration.study import run_study, study_evaluator  # noqa: E402
+from susp_bo.calibration.study_preparation import prepare_study, store_fingerprint  # noqa: E402
 from susp_bo.commands.demo import DEMO_RIG, demo_config  # noqa: E402
 from susp_bo.data.measured import save_run  # noqa: E402
 from susp_bo.data.synthetic import synthesize_runs  # noqa: E402
