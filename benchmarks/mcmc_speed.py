@@ -33,7 +33,8 @@ from susp_bo.calibration.design import space_filling_design, to_unit
 from susp_bo.calibration.loop import torch_threads
 from susp_bo.calibration.mcmc import RandomWalkMetropolis, run_pyro, run_vectorized
 from susp_bo.calibration.sampling import initial_positions, surrogate_potential
-from susp_bo.calibration.surrogate import SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate import SurrogateSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
 from susp_bo.calibration.test_functions import correlated_gaussian_7d
 
 

@@ -30,8 +30,9 @@ from susp_bo.calibration.local_search import LocalSearchResult
 from susp_bo.calibration.result import Phase
 from susp_bo.calibration.sampling import surrogate_log_likelihood
 from susp_bo.calibration.settings import CalibrationSettings
-from susp_bo.calibration.surrogate import Bowl, Surrogate, fit_surrogate
+from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import edge_points, observation_noise_sd
+from susp_bo.calibration.surrogate_fit import Bowl, fit_surrogate
 from susp_bo.calibration.trust_region import next_box, training_mask
 
 logger = logging.getLogger(__name__)

@@ -88,7 +88,7 @@ def fixed_bowl_mean(bowl: Any, z_sd: float, std_z: torch.Tensor) -> FullQuadrati
     """A :class:`FullQuadraticMean` fixed to a known bowl; only the constant is fitted.
 
     Args:
-        bowl: :class:`~susp_bo.calibration.surrogate.Bowl` (centre, precision in log-L
+        bowl: :class:`~susp_bo.calibration.surrogate_fit.Bowl` (centre, precision in log-L
             units per unit²).
         z_sd: sd of the GP's outputs (the ``Standardize`` scale), to express the bowl in
             standardised units.

@@ -8,7 +8,8 @@ import torch
 
 from susp_bo.calibration.acquisition import select_uncertainty_batch
 from susp_bo.calibration.loop import CalibrationSettings
-from susp_bo.calibration.surrogate import SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate import SurrogateSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
 
 VERTEX = np.array([0.5, 0.3])
 

@@ -12,7 +12,8 @@ from scipy.stats import qmc
 
 from susp_bo.calibration.basin_search import BasinSettings, climb, secondary_basins
 from susp_bo.calibration.loop import CalibrationSettings, calibrate
-from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
 
 CENTRES = np.array([[0.25, 0.3], [0.75, 0.7]])
 SD = 0.05

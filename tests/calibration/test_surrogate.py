@@ -7,11 +7,8 @@ import pytest
 import torch
 
 from susp_bo.calibration.design import space_filling_design, to_unit
-from susp_bo.calibration.surrogate import (
-    OutputWarping,
-    SurrogateSettings,
-    fit_surrogate,
-)
+from susp_bo.calibration.surrogate import OutputWarping, SurrogateSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
 from susp_bo.calibration.test_functions import correlated_gaussian_7d
 
 TARGET = correlated_gaussian_7d()
@@ -117,7 +114,7 @@ def test_settings_validation() -> None:
 
 def test_auto_mean_keeps_the_better_leave_one_out_fit() -> None:
     """On an exact quadratic bowl the negative-quadratic prior mean wins, and auto keeps it."""
-    from susp_bo.calibration.surrogate import NegativeQuadraticMean
+    from susp_bo.calibration.surrogate_means import NegativeQuadraticMean
 
     rng = np.random.default_rng(3)
     x = rng.uniform(0.0, 1.0, (30, 2))

@@ -10,8 +10,9 @@ import torch
 
 from susp_bo.calibration.loop import CalibrationSettings, calibrate
 from susp_bo.calibration.sampling import sample_surrogate_posterior, surrogate_log_likelihood
-from susp_bo.calibration.surrogate import SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.calibration.surrogate_check import SurrogateCheck, edge_points
+from susp_bo.calibration.surrogate_fit import fit_surrogate
 from susp_bo.calibration.test_functions import TARGETS
 
 

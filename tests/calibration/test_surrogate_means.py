@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from susp_bo.calibration.surrogate import SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate import SurrogateSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
 from susp_bo.calibration.surrogate_means import FullQuadraticMean, initial_full_quadratic_mean
 
 

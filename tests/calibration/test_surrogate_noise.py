@@ -12,8 +12,10 @@ from gpytorch.likelihoods import FixedNoiseGaussianLikelihood, GaussianLikelihoo
 
 from susp_bo.calibration.design import to_unit
 from susp_bo.calibration.loop import CalibrationSettings, calibrate
-from susp_bo.calibration.surrogate import SurrogateSettings, fit_surrogate
+from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.calibration.surrogate_check import SurrogateCheck, edge_points, observation_noise_sd
+from susp_bo.calibration.surrogate_fit import auto_means, fit_surrogate
+from susp_bo.calibration.surrogate_means import FullQuadraticMean
 from susp_bo.calibration.test_functions import NoisyTarget, banana_2d, noisy_gaussian_7d
 
 
@@ -130,3 +132,25 @@ def test_a_narrow_noise_prior_holds_a_known_noise_level() -> None:
     assert free.latent_noise_sd > 0.6, free.latent_noise_sd
     with pytest.raises(ValueError, match="noise_prior_width"):
         SurrogateSettings(noise="learned", noise_prior_width=0.0)
+
+
+@pytest.mark.parametrize("noise_seed", [4, 5])
+def test_auto_mean_under_learned_noise_is_the_correlated_bowl(noise_seed: int) -> None:
+    """With noise, ``mean="auto"`` is the full quadratic: on noisy correlated-Gaussian data
+    it follows the noiseless log L over the posterior at least twice as closely as the
+    constant or the diagonal quadratic mean (measured 0.09 / 0.17 nats against 0.35–0.64).
+    The deterministic default keeps its two candidates."""
+    assert auto_means("fixed") == ("constant", "quadratic")
+    target = NoisyTarget(noisy_gaussian_7d().exact, 1.0, noise_seed=noise_seed)
+    x, y = _data(target, 0)
+    post = target.sample(2000, 300)
+    exact = target.exact.log_likelihood(post)
+    u = torch.as_tensor(to_unit(post, target.bounds))
+    errors = {}
+    for mean in ("auto", "constant", "quadratic"):
+        surrogate = fit_surrogate(x, y, SurrogateSettings(noise="learned", mean=mean), seed=0)
+        with torch.no_grad():  # nats; a constant offset does not matter
+            errors[mean] = float(np.std(surrogate.log_likelihood_mean(u).numpy() - exact))
+        if mean == "auto":
+            assert isinstance(surrogate.model.mean_module, FullQuadraticMean)
+    assert errors["auto"] < 0.5 * min(errors["constant"], errors["quadratic"]), errors
