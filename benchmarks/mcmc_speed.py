@@ -30,7 +30,7 @@ import pyro.ops.stats as pyro_stats
 import torch
 
 from susp_bo.calibration.design import space_filling_design, to_unit
-from susp_bo.calibration.loop import torch_threads
+from susp_bo.calibration.loop_step import torch_threads
 from susp_bo.calibration.mcmc import RandomWalkMetropolis, run_pyro, run_vectorized
 from susp_bo.calibration.sampling import initial_positions, surrogate_potential
 from susp_bo.calibration.surrogate import SurrogateSettings

@@ -299,7 +299,8 @@ from dataclasses import replace
 import numpy as np
 
 from susp_bo.calibration.design import from_unit
-from susp_bo.calibration.loop import CalibrationSettings, calibrate, torch_threads
+from susp_bo.calibration.loop import CalibrationSettings, calibrate
+from susp_bo.calibration.loop_step import torch_threads
 from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.calibration.test_functions import (
     TARGETS,

@@ -118,6 +118,17 @@ def fit_in_box(
 
 @dataclass(frozen=True)
 class Step:
+    """What one step decided.
+
+    Attributes:
+        phase: "ego" or "refine".
+        proposal: (b x q) the next batch in ``box``'s unit cube, or None: the search stops.
+        criterion: the phase's stopping statistic (EI/spread, or the posterior mean of
+            sd[log L̃] in nats).
+        stop_reason: why it stops ("ego_converged", "converged", "budget"); "" otherwise.
+        box: (2 x q) the search box the proposal is in (physical units).
+    """
+
     phase: Phase
     proposal: torch.Tensor | None
     criterion: float
