@@ -55,9 +55,7 @@ from susp_bo.calibration.loop import (
     calibrate,
 )
 from susp_bo.calibration.paired_error import PairedOutputError
-from susp_bo.calibration.study_inputs import (
-    store_mismatch,
-)
+from susp_bo.calibration.study_inputs import store_mismatch
 from susp_bo.calibration.study_preparation import (
     STORE_NAME,
     PreparedStudy,
