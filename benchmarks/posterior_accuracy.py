@@ -21,6 +21,9 @@ known) and each budget, this script runs in the same process:
   the noisy target's noise sd): the information PyVBMC gets on that target;
 - ``susp_bo-optimistic``: the default with ``refine_optimism=2.0`` (refinement candidates
   from the optimistic posterior exp(E[L̃]), weight exp(E[log L̃] + 2 sd − max));
+- ``susp_bo-kauto``: the default with ``SurrogateSettings(kernel="auto")`` (the Matérn
+  and the pairwise additive kernel fitted at every refit, the better leave-one-out score
+  kept: :mod:`susp_bo.calibration.additive_kernel`);
 - ``pyvbmc``: PyVBMC (Acerbi's VBMC) at ``max_fun_evals`` = the same budget, on the
   same unit-cube log density with the same bounds (if ``pyvbmc`` is installed); on a
   noisy target it is told the noise sd (``specify_target_noise``);
@@ -348,6 +351,7 @@ def _runners(batch_size: int) -> dict[str, Callable[[], Runner]]:
         "susp_bo-noise": with_surrogate(noise="learned"),
         "susp_bo-known-noise": with_surrogate(noise="learned", noise_prior_width=0.02),
         "susp_bo-optimistic": lambda: run_susp_bo(replace(base, refine_optimism=2.0)),
+        "susp_bo-kauto": with_surrogate(kernel="auto"),
         "pyvbmc": lambda: run_pyvbmc,
         "bolfi": lambda: run_bolfi,
     }

@@ -46,6 +46,7 @@ Example (also in notes/study_example.toml)::
     local = true            # Gauss–Newton on the spectra after EGO (needed for "paired")
     basins = true           # climb other modes EGO saw only at their fringe (default true)
     refine_optimism = 0.0   # > 0 (e.g. 2): also refine where the surrogate may miss mass
+    kernel = "matern"       # GP covariance; "auto" also tries the pairwise additive one
 """
 
 from __future__ import annotations
@@ -250,6 +251,10 @@ class OutputErrorConfig:
             object.__setattr__(self, "sensor_noise_m_s2", float(noise))
 
 
+_KERNELS = ("matern", "additive_pairs", "auto")
+"""Values of ``[search] kernel`` (:class:`susp_bo.calibration.surrogate.SurrogateSettings`)."""
+
+
 @dataclass(frozen=True)
 class SearchConfig:
     """How the loop searches C_w after the design and EGO.
@@ -269,12 +274,18 @@ class SearchConfig:
             it does not see, weighted by exp(E[log L̃] + κ sd); for curved posteriors
             (on a curved 5-D test target MMTV .073–.153 against .130–.160), at more
             surrogate fits a batch.
+        kernel: the GP's covariance
+            (:attr:`susp_bo.calibration.surrogate.SurrogateSettings.kernel`): "matern"
+            (default), "additive_pairs" or "auto" (both fitted at every refit, the better
+            leave-one-out score kept; for a log L made of one- and two-parameter terms,
+            :mod:`susp_bo.calibration.additive_kernel`; each refit costs about 4x).
     """
 
     section: ClassVar[str] = "search"
     local: bool = False
     basins: bool = True
     refine_optimism: float = 0.0
+    kernel: str = "matern"
 
     def __post_init__(self) -> None:
         for name in ("local", "basins"):
@@ -291,6 +302,11 @@ class SearchConfig:
                 f"search.refine_optimism: {kappa!r} is not allowed; expected a finite number >= 0"
             )
         object.__setattr__(self, "refine_optimism", float(kappa))
+        if self.kernel not in _KERNELS:
+            raise ValueError(
+                f"search.kernel: {self.kernel!r} is not allowed; expected one of "
+                + ", ".join(f'"{k}"' for k in _KERNELS)
+            )
 
 
 _SECTIONS: dict[str, type] = {

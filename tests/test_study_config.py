@@ -178,6 +178,11 @@ BAD_EDITS = [
         "refine_optimism = nan",
         r"search\.refine_optimism: nan is not allowed; expected a finite number >= 0",
     ),
+    (
+        'kernel = "matern"',
+        'kernel = "rbf"',
+        r"search\.kernel: 'rbf' is not allowed; expected one of \"matern\", \"additive_pairs\"",
+    ),
 ]
 
 

@@ -62,6 +62,7 @@ from susp_bo.calibration.study_preparation import (
     prepare_study,
     store_fingerprint,
 )
+from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect
@@ -116,6 +117,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         local_search=config.search.local,
         basin_search=config.search.basins,
         refine_optimism=config.search.refine_optimism,
+        surrogate=SurrogateSettings(kernel=config.search.kernel),  # type: ignore[arg-type]
     )
 
 

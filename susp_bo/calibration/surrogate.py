@@ -86,6 +86,7 @@ import numpy as np
 import torch
 from botorch.models import SingleTaskGP
 
+from susp_bo.calibration.additive_kernel import PairwiseAdditiveKernel, pairwise_additive
 from susp_bo.calibration.surrogate_means import (
     FullQuadraticMean,
     NegativeQuadraticMean,
@@ -96,6 +97,7 @@ logger = logging.getLogger(__name__)
 Transform = Literal["auto", "log_deficit", "none"]
 MeanKind = Literal["auto", "quadratic", "constant", "full_quadratic"]
 NoiseKind = Literal["fixed", "learned"]
+KernelKind = Literal["matern", "additive_pairs", "auto"]
 _SQRT5 = math.sqrt(5.0)
 
 
@@ -127,6 +129,12 @@ class SurrogateSettings:
             (> 0; default 2, a factor e² either way). A small width (e.g. 0.05) holds the
             noise at ``noise_sd_guess``: a noise level known beforehand (say, from
             replicate runs at one point) rather than fitted.
+        kernel: the GP's covariance: "matern" (default: Matérn-5/2 ARD),
+            "additive_pairs" (first- and second-order additive squared-exponential terms,
+            :class:`~susp_bo.calibration.additive_kernel.PairwiseAdditiveKernel`: a log L
+            made of one- and two-parameter terms, such as a chain of curved
+            conditionals) or "auto" (both fitted at every refit, the better
+            leave-one-out score kept).
     """
 
     transform: Transform = "none"
@@ -136,6 +144,7 @@ class SurrogateSettings:
     noise: NoiseKind = "fixed"
     noise_sd_guess: float = 1.0
     noise_prior_width: float = 2.0
+    kernel: KernelKind = "matern"
 
     def __post_init__(self) -> None:
         if self.transform not in ("auto", "log_deficit", "none"):
@@ -154,6 +163,10 @@ class SurrogateSettings:
             raise ValueError(f"noise_sd_guess: {self.noise_sd_guess} must be > 0 nats")
         if not self.noise_prior_width > 0.0:
             raise ValueError(f"noise_prior_width: {self.noise_prior_width} must be > 0")
+        if self.kernel not in ("matern", "additive_pairs", "auto"):
+            raise ValueError(
+                f"kernel: {self.kernel!r}, expected 'matern', 'additive_pairs' or 'auto'"
+            )
 
 
 @dataclass(frozen=True)
@@ -222,6 +235,9 @@ class Surrogate:
         covar = model.covar_module
         self._inv_ls = (1.0 / covar.base_kernel.lengthscale.detach().reshape(-1)).clone()
         self._outputscale = float(covar.outputscale.detach())
+        self._mix: float | None = None
+        if isinstance(covar.base_kernel, PairwiseAdditiveKernel):
+            self._mix = float(covar.base_kernel.mix.detach())
         mm = model.mean_module
         self._full: tuple[torch.Tensor, torch.Tensor] | None = None
         self._quadratic: tuple[torch.Tensor, torch.Tensor] | None = None
@@ -252,7 +268,14 @@ class Surrogate:
         noise = float(self.model.likelihood.noise.detach().reshape(-1).max())
         return math.sqrt(noise) * self._y_std
 
+    @property
+    def kernel_kind(self) -> str:
+        """The fitted covariance: "matern" or "additive_pairs"."""
+        return "matern" if self._mix is None else "additive_pairs"
+
     def _kernel(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+        if self._mix is not None:
+            return self._outputscale * pairwise_additive(a, b, self._inv_ls, self._mix)
         a = a * self._inv_ls
         b = b * self._inv_ls
         d2 = (a**2).sum(-1)[:, None] + (b**2).sum(-1)[None, :] - 2.0 * a @ b.T
@@ -269,6 +292,8 @@ class Surrogate:
         return torch.full(u.shape[:-1], self._mean_constant, dtype=u.dtype)
 
     def _cross(self, u: torch.Tensor) -> torch.Tensor:
+        if self._mix is not None:
+            return self._kernel(u, self.train_x)
         a = u * self._inv_ls
         d2 = (a**2).sum(-1)[:, None] + self._xs_sq[None, :] - 2.0 * a @ self._xs.T
         r = _SQRT5 * torch.sqrt(d2.clamp_min(1e-30))

@@ -16,7 +16,7 @@ def test_study_config_sections_reach_the_loop_settings() -> None:
         out=Path("o"),
         budget=BudgetConfig(max_evaluations=90, initial_design=30, batch_size=6, check_points=4),
         seeds=SeedsConfig(calibration=5, mcmc=6),
-        search=SearchConfig(local=True, basins=False, refine_optimism=2),
+        search=SearchConfig(local=True, basins=False, refine_optimism=2, kernel="auto"),
     )
     settings = calibration_settings(config)
     assert (settings.max_evaluations, settings.initial_design_size) == (90, 30)
@@ -24,8 +24,10 @@ def test_study_config_sections_reach_the_loop_settings() -> None:
     assert (settings.seed, settings.mcmc_seed) == (5, 6)
     assert (settings.local_search, settings.basin_search) == (True, False)
     assert settings.refine_optimism == 2.0 and isinstance(settings.refine_optimism, float)
+    assert settings.surrogate.kernel == "auto"
 
 
 def test_default_search_section_keeps_the_loop_default_refinement() -> None:
     config = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"))
     assert calibration_settings(config).refine_optimism == CalibrationSettings().refine_optimism
+    assert calibration_settings(config).surrogate == CalibrationSettings().surrogate
