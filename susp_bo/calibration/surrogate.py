@@ -70,6 +70,15 @@ evaluation, 450 evaluations, seeds 0–2): MMTV 0.023 / 0.009 / 0.020, all three
 collapses to ~0.025 nats (the GP interpolates the scatter; log L spans ~270 nats sd
 over those points). A learned-noise run takes 250–270 s on this target (2 cores).
 
+Covariance. The default ``kernel="matern"`` is the Matérn-5/2 ARD kernel above.
+``"additive_pairs"`` is a sum of one- and two-parameter squared-exponential terms
+(:class:`~susp_bo.calibration.additive_kernel.PairwiseAdditiveKernel`), for a log L made
+of terms that each involve one or two parameters (e.g. chained curved conditionals);
+``"auto"`` fits both and keeps the better leave-one-out score. On the chained-banana
+5-D target at 350 evaluations ``"auto"`` with ``refine_optimism=2`` brought MMTV from
+.13–.16 to .03–.05 (:mod:`.additive_kernel`, ``benchmarks/posterior_accuracy.py``);
+each refit costs about 4x, so it is opt-in.
+
 A fast torch predictor (no GPyTorch lazy tensors) is precomputed from the fitted
 model for MCMC: it evaluates the posterior mean (and variance) for thousands of
 points per call.

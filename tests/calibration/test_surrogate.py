@@ -21,11 +21,20 @@ def data() -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize(
-    ("transform", "mean"), [("none", "constant"), ("log_deficit", "quadratic")]
+    ("transform", "mean", "kernel"),
+    [
+        ("none", "constant", "matern"),
+        ("log_deficit", "quadratic", "matern"),
+        ("none", "quadratic", "additive_pairs"),
+    ],
 )
-def test_fast_predictor_equals_gpytorch_posterior(data, transform: str, mean: str) -> None:
+def test_fast_predictor_equals_gpytorch_posterior(
+    data, transform: str, mean: str, kernel: str
+) -> None:
     x, y = data
-    s = fit_surrogate(x, y, SurrogateSettings(transform=transform, mean=mean), seed=0)
+    settings = SurrogateSettings(transform=transform, mean=mean, kernel=kernel)  # type: ignore[arg-type]
+    s = fit_surrogate(x, y, settings, seed=0)
+    assert s.kernel_kind == kernel
     u = torch.rand(40, 7, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
     with torch.no_grad():
         post = s.model.posterior(u)
