@@ -6,7 +6,7 @@ paths made absolute). Unknown keys are errors (they are usually typos), and
 every error names the field, the value and what is allowed. Relative paths
 resolve against the config file's folder.
 
-Example (also in notes/study_example.toml)::
+Example (also in the README; the test suite loads this one)::
 
     # susp-bo study: calibrate the reference trailer's suspension on measured runs.
     # Run with: susp-bo calibrate study.toml [--resume]. Relative paths resolve against
