@@ -60,7 +60,8 @@ PyVBMC); the history of every figure, with its command, is in
 ``benchmarks/posterior_accuracy_results.md``::
 
     target             evals  this tool (method)                   PyVBMC 1.5
-    curved_chain_5d      350  SESSION12_CURVED
+    curved_chain_5d      350  .032 / .029 / .045 (kauto-optimistic) .125 / .129 / .138
+                              .136 / .130 / .160 (susp_bo, Matérn)
     student_t_6d         400  .036 / .032 / .033 (susp_bo)         .376 / .357 / .274
     trimodal_5d          350  .023 / .023 / .020 (susp_bo)         .413 / .413 / .413
     noisy_gaussian_7d    450  .023 / .009 / .020 (susp_bo-noise)   .046 / .028 / .024
