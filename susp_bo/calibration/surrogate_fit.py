@@ -93,8 +93,9 @@ def fit_surrogate(
     """Fits the GP to (unit-cube inputs, log L) and returns the surrogate.
 
     With ``transform="auto"`` both warpings (with ``mean="auto"`` every prior mean of
-    :func:`auto_means`) are fitted and the one with the higher
-    :meth:`Surrogate.loo_log_score` is returned.
+    :func:`auto_means`, with ``kernel="auto"`` both kernels) are fitted and the one with
+    the higher :meth:`Surrogate.loo_log_score` is returned; with a ``bowl``, only the
+    kernel is chosen so.
 
     Args:
         x_unit: (n x q) inputs in the unit cube.
@@ -107,13 +108,16 @@ def fit_surrogate(
     Returns:
         The fitted :class:`Surrogate`.
     """
+    kernels = ("matern", "additive_pairs") if settings.kernel == "auto" else (settings.kernel,)
     if bowl is not None:
         if settings.transform != "none":
             raise ValueError("bowl: a fixed quadratic mean needs transform='none'")
-        return _fit_one(x_unit, y, settings, seed, bowl)
+        if len(kernels) == 1:
+            return _fit_one(x_unit, y, replace(settings, kernel=kernels[0]), seed, bowl)
+        bowl_fits = [_fit_one(x_unit, y, replace(settings, kernel=k), seed, bowl) for k in kernels]
+        return bowl_fits[int(np.argmax([f.loo_log_score() for f in bowl_fits]))]
     transforms = ("none", "log_deficit") if settings.transform == "auto" else (settings.transform,)
     means = auto_means(settings.noise) if settings.mean == "auto" else (settings.mean,)
-    kernels = ("matern", "additive_pairs") if settings.kernel == "auto" else (settings.kernel,)
     if len(transforms) * len(means) * len(kernels) == 1:
         return _fit_one(
             x_unit,

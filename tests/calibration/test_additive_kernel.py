@@ -14,7 +14,7 @@ import torch
 from susp_bo.calibration.additive_kernel import PairwiseAdditiveKernel, pairwise_additive
 from susp_bo.calibration.design import space_filling_design, to_unit
 from susp_bo.calibration.surrogate import SurrogateSettings
-from susp_bo.calibration.surrogate_fit import fit_surrogate
+from susp_bo.calibration.surrogate_fit import Bowl, fit_surrogate
 from susp_bo.calibration.test_functions import curved_chain_5d
 
 
@@ -85,6 +85,17 @@ def test_additive_kernel_learns_the_chained_banana_and_auto_picks_it(chain_data)
         "additive_pairs",
         "matern",
     )
+
+
+def test_auto_kernel_is_chosen_under_a_fixed_bowl_mean_too(chain_data) -> None:
+    """With the local phase's Laplace bowl as the fixed mean, "auto" still picks by LOO."""
+    x, y, u_test, y_test = chain_data
+    bowl = Bowl(centre=x[np.argmax(y)], precision=np.eye(5) * 50.0)
+    matern = fit_surrogate(x, y, SurrogateSettings(kernel="matern"), seed=0, bowl=bowl)
+    auto = fit_surrogate(x, y, SurrogateSettings(kernel="auto"), seed=0, bowl=bowl)
+    assert (matern.kernel_kind, auto.kernel_kind) == ("matern", "additive_pairs")
+    assert auto.loo_log_score() > matern.loo_log_score()
+    assert _posterior_error(auto, u_test, y_test) < _posterior_error(matern, u_test, y_test)
 
 
 def test_auto_keeps_the_matern_kernel_on_a_three_way_interaction() -> None:
