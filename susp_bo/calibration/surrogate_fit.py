@@ -112,25 +112,21 @@ def fit_surrogate(
     if bowl is not None:
         if settings.transform != "none":
             raise ValueError("bowl: a fixed quadratic mean needs transform='none'")
-        if len(kernels) == 1:
-            return _fit_one(x_unit, y, replace(settings, kernel=kernels[0]), seed, bowl)
-        bowl_fits = [_fit_one(x_unit, y, replace(settings, kernel=k), seed, bowl) for k in kernels]
-        return bowl_fits[int(np.argmax([f.loo_log_score() for f in bowl_fits]))]
-    transforms = ("none", "log_deficit") if settings.transform == "auto" else (settings.transform,)
-    means = auto_means(settings.noise) if settings.mean == "auto" else (settings.mean,)
-    if len(transforms) * len(means) * len(kernels) == 1:
-        return _fit_one(
-            x_unit,
-            y,
-            replace(settings, transform=transforms[0], mean=means[0], kernel=kernels[0]),
-            seed,
+        candidates = [replace(settings, kernel=k) for k in kernels]
+    else:
+        transforms = (
+            ("none", "log_deficit") if settings.transform == "auto" else (settings.transform,)
         )
-    fits = [
-        _fit_one(x_unit, y, replace(settings, transform=t, mean=m, kernel=k), seed)
-        for k in kernels
-        for t in transforms
-        for m in means
-    ]
+        means = auto_means(settings.noise) if settings.mean == "auto" else (settings.mean,)
+        candidates = [
+            replace(settings, transform=t, mean=m, kernel=k)
+            for k in kernels
+            for t in transforms
+            for m in means
+        ]
+    fits = [_fit_one(x_unit, y, c, seed, bowl) for c in candidates]
+    if len(fits) == 1:
+        return fits[0]
     scores = [f.loo_log_score() for f in fits]
     logger.debug("surrogate LOO scores %s", scores)
     return fits[int(np.argmax(scores))]
