@@ -35,6 +35,7 @@ Example (also in the README; the test suite loads this one)::
     chains = 512            # vectorised in one kernel step
     draws = 2000            # kept steps per chain
     warmup = 500            # adaptive warm-up steps per chain
+    sampler = "auto"        # random walk; HMC where it did not mix ("random_walk", "hmc")
 
     [output_error]
     model = "unpaired"      # eq. 4 mixture (default); "paired": each run vs its own track
@@ -160,23 +161,36 @@ class ExecutorConfig:
             )
 
 
+_SAMPLERS = ("random_walk", "hmc", "auto")
+"""Values of ``[mcmc] sampler`` (:data:`susp_bo.calibration.sampling.SAMPLERS`; kept here so
+that reading a config does not import torch, a test checks that the two agree)."""
+
+
 @dataclass(frozen=True)
 class MCMCConfig:
-    """Metropolis–Hastings sampling on the surrogate: chains, draws and warm-up per chain.
+    """MCMC on the surrogate: chains, draws and warm-up per chain, and the sampler.
 
     The chains are vectorised inside one kernel step, so many chains cost little
-    more than one; the defaults are those of :class:`CalibrationSettings`.
+    more than one; the defaults are those of :class:`CalibrationSettings`. ``sampler``:
+    "auto" (random walk, then reflective HMC where the random walk found one mode but
+    did not mix), "random_walk" or "hmc" (:mod:`susp_bo.calibration.sampling`).
     """
 
     section: ClassVar[str] = "mcmc"
     chains: int = 512
     draws: int = 2000
     warmup: int = 500
+    sampler: str = "auto"
 
     def __post_init__(self) -> None:
         _integer("mcmc.chains", self.chains, 1)
         _integer("mcmc.draws", self.draws, 1)
         _integer("mcmc.warmup", self.warmup, 0)
+        if self.sampler not in _SAMPLERS:
+            raise ValueError(
+                f"mcmc.sampler: {self.sampler!r} is not allowed; expected one of "
+                + ", ".join(f'"{k}"' for k in _SAMPLERS)
+            )
 
 
 @dataclass(frozen=True)

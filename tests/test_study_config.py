@@ -57,10 +57,21 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         budget=BudgetConfig(max_evaluations=120, initial_design=40, batch_size=8, check_points=8),
         seeds=SeedsConfig(calibration=0, mcmc=1),
         executor=ExecutorConfig(workers=8),
-        mcmc=MCMCConfig(chains=512, draws=2000, warmup=500),
+        mcmc=MCMCConfig(chains=512, draws=2000, warmup=500, sampler="auto"),
         output_error=OutputErrorConfig(model="unpaired", sigma="estimate", sensor_noise_m_s2=0.005),
         search=SearchConfig(local=True),
     )
+
+
+def test_allowed_values_agree_with_the_calibration_package() -> None:
+    """The config repeats two lists of names (it does not import torch): they must agree."""
+    import typing
+
+    from susp_bo.calibration.sampling import SAMPLERS
+    from susp_bo.calibration.surrogate import KernelKind
+
+    assert study_config._SAMPLERS == SAMPLERS
+    assert typing.get_args(KernelKind) == study_config._KERNELS
 
 
 def test_readme_shows_the_docstring_example() -> None:
@@ -182,6 +193,11 @@ BAD_EDITS = [
         'kernel = "matern"',
         'kernel = "rbf"',
         r"search\.kernel: 'rbf' is not allowed; expected one of \"matern\", \"additive_pairs\"",
+    ),
+    (
+        'sampler = "auto"',
+        'sampler = "nuts"',
+        r"mcmc\.sampler: 'nuts' is not allowed; expected one of \"random_walk\", \"hmc\", \"auto\"",
     ),
 ]
 

@@ -350,6 +350,7 @@ def calibrate(
             estimator=settings.estimator,
             backend=settings.mcmc_backend,
             progress=progress,
+            sampler=settings.mcmc_sampler,
         )
         log_l = surrogate_log_likelihood(surrogate, settings.estimator)
         summary = summarize(draws_u.numpy(), box, list(names), log_l)

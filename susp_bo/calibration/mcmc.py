@@ -29,7 +29,8 @@ modes as the posterior does instead of as they started. When no split is found
 the kernel is exactly the random-walk kernel above (same random numbers, same
 draws).
 
-Two drivers run the same ``sample`` step function:
+Two drivers run the same ``sample`` step function (of this kernel or of
+:class:`~.hmc.ReflectiveHMC`, the gradient-based kernel for long curved ridges):
 
 - :func:`run_pyro` — through ``pyro.infer.MCMC`` (``num_chains=1``: our chains live
   inside the state tensor);
@@ -49,6 +50,7 @@ import torch
 from pyro.infer import MCMC
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 
+from susp_bo.calibration.hmc import ReflectiveHMC
 from susp_bo.calibration.mode_jumps import MixtureProposal, find_modes
 from susp_bo.progress import progress_bar, redrawn_bars
 
@@ -259,7 +261,7 @@ class RandomWalkMetropolis(MCMCKernel):
 
 
 def run_vectorized(
-    kernel: RandomWalkMetropolis,
+    kernel: RandomWalkMetropolis | ReflectiveHMC,
     num_samples: int,
     warmup_steps: int,
     thin: int = 1,
@@ -268,7 +270,7 @@ def run_vectorized(
     """Runs the kernel in a plain torch loop (fast path).
 
     Args:
-        kernel: the MH kernel (its state holds all chains).
+        kernel: the random-walk or HMC kernel (its state holds all chains).
         num_samples: sampling steps after warm-up (>= 1).
         warmup_steps: adaptation steps, discarded.
         thin: keep every thin-th sampling step.
@@ -304,7 +306,10 @@ def run_vectorized(
 
 
 def run_pyro(
-    kernel: RandomWalkMetropolis, num_samples: int, warmup_steps: int, progress: bool = False
+    kernel: RandomWalkMetropolis | ReflectiveHMC,
+    num_samples: int,
+    warmup_steps: int,
+    progress: bool = False,
 ) -> torch.Tensor:
     """Runs the kernel through ``pyro.infer.MCMC``; returns (n_chains x num_samples x q).
 

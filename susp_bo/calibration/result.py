@@ -60,7 +60,8 @@ class CalibrationResult:
         n_evaluations: number of log L evaluations.
         stop_reason: "budget", "converged" or "ego_converged" (no refinement).
         history: one report per refinement iteration.
-        mcmc: kernel diagnostics of the final run (acceptance rate, scale).
+        mcmc: kernel diagnostics of the final run (acceptance rate, scale or step size,
+            the sampler whose draws these are: ``random_walk`` or ``hmc``).
         check: the held-out check of the surrogate posterior (None when
             ``check_points`` is 0 or no budget was left for it).
         reliability: the verdict on this result (:mod:`.reliability`).
@@ -83,7 +84,7 @@ class CalibrationResult:
     n_evaluations: int
     stop_reason: str
     history: tuple[IterationReport, ...]
-    mcmc: dict[str, float]
+    mcmc: dict[str, float | str]
     check: SurrogateCheck | None = None
     reliability: Reliability | None = None
     search_box: np.ndarray | None = None

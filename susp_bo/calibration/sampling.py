@@ -9,6 +9,20 @@ of L̃ from the GP:
 - ``"mean_log"``: E[log L̃] (exact lognormal moment of the warping).
 - ``"expected"``: log E[L̃], the paper's E[L̃] = exp(μ + σ²/2) (Gauss–Hermite under
   warping). Optimistic where the GP is uncertain.
+
+Two samplers (``sampler``):
+
+- ``"random_walk"``: the adaptive random-walk MH kernel (:mod:`.mcmc`), with jumps
+  between separated modes;
+- ``"hmc"``: reflective Hamiltonian Monte Carlo on the surrogate's autograd gradient
+  (:mod:`.hmc`), for long curved ridges, where the random walk's autocorrelation time
+  reaches 10³ steps; no jumps between modes;
+- ``"auto"`` (the calibration's default): the random walk first; when it found a single
+  mode but did not mix (split R-hat above ``r_hat_max`` or bulk ESS below ``ess_min``
+  on some parameter, the thresholds of the ``poor_mixing`` verdict), HMC from the same
+  starts, keeping HMC's draws when they mixed or, if neither did, when their worst
+  R-hat is lower. Where the random walk mixed, the
+  draws are the random walk's, bit for bit.
 """
 
 from __future__ import annotations
@@ -20,11 +34,21 @@ from typing import Literal
 import numpy as np
 import torch
 
-from susp_bo.calibration.mcmc import RandomWalkMetropolis, run_pyro, run_vectorized
+from susp_bo.calibration.hmc import ReflectiveHMC
+from susp_bo.calibration.mcmc import (
+    RandomWalkMetropolis,
+    chain_diagnostics,
+    run_pyro,
+    run_vectorized,
+)
 from susp_bo.calibration.surrogate import Surrogate
 
 Estimator = Literal["plug_in", "mean_log", "expected"]
 Backend = Literal["vectorized", "pyro"]
+Sampler = Literal["random_walk", "hmc", "auto"]
+SAMPLERS: tuple[str, ...] = ("random_walk", "hmc", "auto")
+R_HAT_MAX = 1.05  # the poor_mixing verdict's thresholds (:func:`.reliability.poor_mixing`)
+ESS_MIN = 400.0
 
 
 def surrogate_log_likelihood(
@@ -76,6 +100,28 @@ def initial_positions(
     return torch.as_tensor(np.clip(starts, 1e-6, 1.0 - 1e-6), dtype=torch.float64)
 
 
+def _mixed(draws: torch.Tensor) -> tuple[bool, float]:
+    """(split R-hat <= R_HAT_MAX and ESS >= ESS_MIN on every parameter, worst R-hat)."""
+    r_hat, ess = chain_diagnostics(draws)
+    worst = float(torch.nan_to_num(r_hat, nan=math.inf).max())
+    return worst <= R_HAT_MAX and bool(torch.all(ess >= ESS_MIN)), worst
+
+
+def _run(
+    kernel: RandomWalkMetropolis | ReflectiveHMC,
+    num_samples: int,
+    warmup_steps: int,
+    backend: Backend,
+    thin: int,
+    progress: bool,
+) -> torch.Tensor:
+    if backend == "vectorized":
+        return run_vectorized(kernel, num_samples, warmup_steps, thin, progress)
+    if backend == "pyro":
+        return run_pyro(kernel, num_samples, warmup_steps, progress)
+    raise ValueError(f"backend: {backend!r}, expected 'vectorized' or 'pyro'")
+
+
 def sample_surrogate_posterior(
     surrogate: Surrogate,
     *,
@@ -87,7 +133,8 @@ def sample_surrogate_posterior(
     backend: Backend = "vectorized",
     thin: int = 1,
     progress: bool = False,
-) -> tuple[torch.Tensor, dict[str, float]]:
+    sampler: Sampler = "random_walk",
+) -> tuple[torch.Tensor, dict[str, float | str]]:
     """Runs the MH kernel on the surrogate posterior.
 
     Args:
@@ -100,24 +147,44 @@ def sample_surrogate_posterior(
         backend: "vectorized" (plain torch loop) or "pyro" (``pyro.infer.MCMC``).
         thin: keep every thin-th step (vectorized backend only).
         progress: a progress bar of the kernel steps on stderr.
+        sampler: "random_walk", "hmc" or "auto" (module docstring).
 
     Returns:
-        ((n_chains x draws x q) unit-cube draws, kernel diagnostics).
+        ((n_chains x draws x q) unit-cube draws, kernel diagnostics: the kernel's own,
+        ``sampler`` (the one whose draws these are) and, when "auto" ran both, ``random
+        walk R-hat`` (the worst split R-hat that called for HMC) or ``hmc R-hat`` (HMC's,
+        when its draws were not kept).
     """
+    if sampler not in SAMPLERS:
+        raise ValueError(f"sampler: {sampler!r}, expected one of {', '.join(SAMPLERS)}")
     x = surrogate.train_x.numpy()
     starts = initial_positions(x, surrogate.train_y, n_chains, seed)
     q = x.shape[1]
-    kernel = RandomWalkMetropolis(
-        surrogate_potential(surrogate, estimator),
-        starts,
-        proposal_cov=(0.03**2) * torch.eye(q, dtype=torch.float64),
-        seed=seed,
-    )
+    potential = surrogate_potential(surrogate, estimator)
+    walk = (True, math.inf)  # (did not mix, worst R-hat) of the random walk
+    if sampler != "hmc":
+        kernel = RandomWalkMetropolis(
+            potential,
+            starts,
+            proposal_cov=(0.03**2) * torch.eye(q, dtype=torch.float64),
+            seed=seed,
+        )
+        with torch.no_grad():
+            draws = _run(kernel, num_samples, warmup_steps, backend, thin, progress)
+        diag: dict[str, float | str] = {**kernel.diagnostics(), "sampler": "random_walk"}
+        if sampler == "random_walk" or float(diag["modes"]) > 1.0:
+            return draws, diag
+        mixed, worst = _mixed(draws)
+        if mixed:
+            return draws, diag
+        walk = (True, worst)
+    hmc = ReflectiveHMC(potential, starts, seed=seed)
     with torch.no_grad():
-        if backend == "vectorized":
-            draws = run_vectorized(kernel, num_samples, warmup_steps, thin, progress)
-        elif backend == "pyro":
-            draws = run_pyro(kernel, num_samples, warmup_steps, progress)
-        else:
-            raise ValueError(f"backend: {backend!r}, expected 'vectorized' or 'pyro'")
-    return draws, kernel.diagnostics()
+        hmc_draws = _run(hmc, num_samples, warmup_steps, backend, thin, progress)
+    hmc_diag: dict[str, float | str] = {**hmc.diagnostics(), "sampler": "hmc"}
+    if sampler == "hmc":
+        return hmc_draws, hmc_diag
+    mixed, worst = _mixed(hmc_draws)
+    if not (not mixed, worst) < walk:
+        return draws, {**diag, "hmc R-hat": worst}
+    return hmc_draws, {**hmc_diag, "random walk R-hat": walk[1]}

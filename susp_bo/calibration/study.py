@@ -113,6 +113,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         mcmc_chains=config.mcmc.chains,
         mcmc_warmup=config.mcmc.warmup,
         mcmc_samples=config.mcmc.draws,
+        mcmc_sampler=config.mcmc.sampler,  # type: ignore[arg-type]
         allow_small_budget=config.budget.allow_small,
         local_search=config.search.local,
         basin_search=config.search.basins,
