@@ -92,8 +92,10 @@ from susp_bo.calibration.test_functions import (
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling peer_samplers.py
 from peer_samplers import run_bolfi, run_pyvbmc
 
-Runner = Callable[[Target, int, int], tuple[np.ndarray, int, str | None]]
-"""(target, budget, seed) -> (draws, evaluations used, reliability verdict or None)."""
+Runner = Callable[[Target, int, int], tuple[np.ndarray, int, dict[str, object] | None]]
+"""(target, budget, seed) -> (draws, evaluations used, this tool's report or None): the
+report's ``verdict`` (reliability verdict and reasons), ``sampler`` (whose draws) and
+``r_hat_max`` (their worst split R-hat) join the run's row."""
 ROBUSTNESS_TARGETS = ("curved_chain_5d", "student_t_6d", "trimodal_5d", "noisy_gaussian_7d")
 """The targets of issue 10, part 3 (MMTV <= 0.05 at 50 (q + 2), never worse than PyVBMC)."""
 
@@ -101,7 +103,7 @@ ROBUSTNESS_TARGETS = ("curved_chain_5d", "student_t_6d", "trimodal_5d", "noisy_g
 def run_susp_bo(settings: CalibrationSettings) -> Runner:
     """Runner for this tool with the given settings (budget and seed filled in)."""
 
-    def run(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int, str | None]:
+    def run(target: Target, budget: int, seed: int) -> tuple[np.ndarray, int, dict[str, object]]:
         s = replace(settings, max_evaluations=budget, seed=seed)
         result = calibrate(target, target.bounds, target.names, s, progress=False)
         reliability = result.reliability
@@ -109,7 +111,12 @@ def run_susp_bo(settings: CalibrationSettings) -> Runner:
         if reliability is not None:
             codes = ",".join(r["code"] for r in reliability.reasons)
             verdict = reliability.verdict + (f" ({codes})" if codes else "")
-        return result.samples, result.n_evaluations, verdict
+        report = {
+            "verdict": verdict,
+            "sampler": result.mcmc.get("sampler"),
+            "r_hat_max": float(np.max(result.summary.r_hat)),
+        }
+        return result.samples, result.n_evaluations, report
 
     return run
 
@@ -247,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
                     try:
                         runner = runners.setdefault(method, factories[method]())
                         with torch_threads(1):
-                            draws, used, verdict = runner(run_target, budget, seed)
+                            draws, used, report = runner(run_target, budget, seed)
                     except (ImportError, NotImplementedError) as exc:
                         print(f"{name:24s} {budget:6d} {method:12s} skipped: {exc}", flush=True)
                         break
@@ -262,12 +269,16 @@ def main(argv: list[str] | None = None) -> int:
                         "mmtv": float(tv.mean()),
                         "tv": tv.tolist(),
                         "seconds": dt,
-                        "verdict": verdict,
+                        "verdict": None,
+                        **(report or {}),
                     }
                     rows.append(row)
+                    sampler = (
+                        f"  [{row['sampler']}, R-hat {row['r_hat_max']:.3f}]" if report else ""
+                    )
                     print(
                         f"{name:24s} {budget:6d} {method:12s} {seed:4d} {used:5d} "
-                        f"{tv.mean():7.4f} {dt:7.1f}  {verdict or ''}",
+                        f"{tv.mean():7.4f} {dt:7.1f}  {row['verdict'] or ''}{sampler}",
                         flush=True,
                     )
                     if args.out:
