@@ -377,6 +377,7 @@ def calibrate(
         expected_at_truth=expected_at_truth,
         box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names),
         modes=int(diag.get("modes", 1) or 1),
+        sampler=str(diag.get("sampler", "random_walk")),
     )
     logger.info(reliability.sentence)
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)

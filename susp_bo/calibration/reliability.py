@@ -421,7 +421,8 @@ def sentence(reasons: Sequence[Reason], evidence: Mapping[str, Any]) -> str:
             f"Trusted: the search converged (best log L {abs(gap):.2f} nats {where} the "
             "surrogate's predicted maximum), "
             f"the held-out check agreed at {evidence.get('check_points', 0)} posterior-edge "
-            f"points and the MCMC mixed (R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
+            f"points and the MCMC mixed ({'HMC, ' if evidence.get('sampler') == 'hmc' else ''}"
+            f"R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
             f"ESS >= {evidence.get('ess_min', math.nan):.0f})."
         )
     first = reasons[0]
@@ -454,6 +455,7 @@ def assess(
     expected_at_truth: tuple[float, float] | None = None,
     box_edge: Reason | None = None,
     modes: int = 1,
+    sampler: str = "random_walk",
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -461,6 +463,8 @@ def assess(
         draws_unit: (... x q) posterior draws in the unit cube of C_w (chains pooled here).
         box_edge: the ``search_box_edge`` reason of :func:`.trust_region.box_edge`, if any.
         modes: separated modes the sampler found (``RandomWalkMetropolis.diagnostics``).
+        sampler: the kernel whose draws are assessed ("random_walk" or "hmc"; the
+            trusted sentence names HMC).
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
@@ -498,6 +502,7 @@ def assess(
         "r_hat_max": float(np.max(r_hat)),
         "ess_min": float(np.min(ess)),
         "modes": int(modes),
+        "sampler": sampler,
     }
     return Reliability(
         verdict="not_trusted" if reasons else "trusted",
