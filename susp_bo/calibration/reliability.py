@@ -47,7 +47,9 @@ Rules (each a pure function of numbers, testable alone):
 - ``search_box_edge`` (:func:`.trust_region.box_edge`): with a trust region, the
   final posterior presses against an inner face of the search box, which cut it.
 - ``poor_mixing`` (:func:`poor_mixing`): split R-hat above ``r_hat_max`` (1.05) or
-  bulk ESS below ``ess_min`` (400) on any parameter.
+  bulk ESS below ``ess_min`` (400) on any parameter, in the draws reported (with the
+  default sampler "auto", HMC was tried when the random walk found one mode and did
+  not mix: :mod:`.sampling`).
 - ``multimodal`` (:func:`multimodal`): the sampler found two or more separated modes
   (:mod:`.mode_jumps`). It then shares the mass between them as the surrogate says,
   but the surrogate's height and width of each mode rest on wherever the search put
@@ -57,7 +59,7 @@ Rules (each a pure function of numbers, testable alone):
   of the draws against 23 %). A maintenance answer should not rest on that.
 
 The thresholds are the keyword defaults of the rule functions; the README lists
-them with each reason.
+them with each reason. The sentence and its advice: :mod:`.reliability_sentence`.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ from typing import Any, Literal
 import numpy as np
 
 from susp_bo.calibration.budget import BudgetRequirement, budget_too_small
+from susp_bo.calibration.reliability_sentence import sentence
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
 Verdict = Literal["trusted", "not_trusted"]
@@ -393,47 +396,6 @@ def multimodal(modes: int) -> Reason | None:
 
 
 # -- the verdict --------------------------------------------------------------------------------
-
-
-_ADVICE = {
-    "budget_too_small": "rerun with --budget {minimum} or more",
-    "not_converged": "rerun with --resume --budget {more}",
-    "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
-    "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
-    "at_bound": "widen that parameter's admissible interval if its value may lie outside, "
-    "or rerun with --resume --budget {more}",
-    "surrogate_misfit": "rerun with --resume --budget {more}",
-    "surrogate_unchecked": "rerun with check points ([budget] check_points)",
-    "search_box_edge": "rerun with --resume --budget {more}",
-    "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
-    "multimodal": "look at the pair plot; rerun with --resume --budget {more} so that the "
-    "search refines every mode; modes that persist mean the data do not identify the "
-    "parameters uniquely",
-}
-
-
-def sentence(reasons: Sequence[Reason], evidence: Mapping[str, Any]) -> str:
-    """One plain sentence: what is wrong first (or why it is trusted), then what to do."""
-    if not reasons:
-        gap = float(evidence.get("optimum_gap_nats", math.nan))
-        where = "above" if gap < 0 else "below"
-        return (
-            f"Trusted: the search converged (best log L {abs(gap):.2f} nats {where} the "
-            "surrogate's predicted maximum), "
-            f"the held-out check agreed at {evidence.get('check_points', 0)} posterior-edge "
-            f"points and the MCMC mixed ({'HMC, ' if evidence.get('sampler') == 'hmc' else ''}"
-            f"R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
-            f"ESS >= {evidence.get('ess_min', math.nan):.0f})."
-        )
-    first = reasons[0]
-    budget = int(evidence.get("budget", 0))
-    advice = _ADVICE.get(first["code"], "rerun with a larger budget").format(
-        minimum=evidence.get("minimum_budget", budget),
-        more=max(2 * budget, int(evidence.get("minimum_budget", 0))),
-    )
-    others = [r["code"] for r in reasons[1:]]
-    also = f" (also: {', '.join(others)})" if others else ""
-    return f"Not trusted: {first['message']}{also}; {advice}."
 
 
 def assess(

@@ -16,7 +16,6 @@ from susp_bo.calibration.reliability import (
     multimodal,
     not_converged,
     poor_mixing,
-    sentence,
     surrogate_misfit,
 )
 from susp_bo.calibration.surrogate_check import SurrogateCheck
@@ -133,14 +132,6 @@ def test_check_direction_matches_the_signs() -> None:
     assert surrogate_misfit(_check([0.5, -0.5])) is None
     unchecked = surrogate_misfit(None)
     assert unchecked is not None and unchecked["code"] == "surrogate_unchecked"
-
-
-def test_trusted_sentence_names_hmc_when_its_draws_were_assessed() -> None:
-    evidence = {"optimum_gap_nats": 0.4, "check_points": 8, "r_hat_max": 1.012, "ess_min": 900}
-    walk = sentence((), {**evidence, "sampler": "random_walk"})
-    hmc = sentence((), {**evidence, "sampler": "hmc"})
-    assert "the MCMC mixed (R-hat <= 1.012, ESS >= 900)" in walk
-    assert "the MCMC mixed (HMC, R-hat <= 1.012, ESS >= 900)" in hmc
 
 
 def test_reliability_round_trips_and_validates() -> None:

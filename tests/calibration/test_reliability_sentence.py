@@ -1,0 +1,31 @@
+"""The verdict's sentence: why it is trusted (naming the sampler), or the first reason
+with its advice and the other reasons' codes."""
+
+from __future__ import annotations
+
+from susp_bo.calibration.reliability_sentence import sentence
+
+
+def test_trusted_sentence_names_hmc_when_its_draws_were_assessed() -> None:
+    evidence = {"optimum_gap_nats": 0.4, "check_points": 8, "r_hat_max": 1.012, "ess_min": 900}
+    walk = sentence((), {**evidence, "sampler": "random_walk"})
+    hmc = sentence((), {**evidence, "sampler": "hmc"})
+    assert walk.startswith("Trusted: the search converged (best log L 0.40 nats below")
+    assert "the MCMC mixed (R-hat <= 1.012, ESS >= 900)" in walk
+    assert "the MCMC mixed (HMC, R-hat <= 1.012, ESS >= 900)" in hmc
+
+
+def test_not_trusted_sentence_gives_the_first_reason_its_advice_and_the_others() -> None:
+    reasons = (
+        {"code": "poor_mixing", "message": "the MCMC did not mix: R-hat 1.3 > 1.05 on a"},
+        {"code": "multimodal", "message": "m"},
+    )
+    text = sentence(reasons, {"budget": 60, "minimum_budget": 51})
+    assert text == (
+        "Not trusted: the MCMC did not mix: R-hat 1.3 > 1.05 on a (also: multimodal); "
+        "rerun with more MCMC draws ([mcmc] draws, chains)."
+    )
+    small = sentence(
+        ({"code": "budget_too_small", "message": "b"},), {"budget": 40, "minimum_budget": 51}
+    )
+    assert small == "Not trusted: b; rerun with --budget 51 or more."
