@@ -16,7 +16,12 @@ Two samplers (``sampler``):
   between separated modes;
 - ``"hmc"``: reflective Hamiltonian Monte Carlo on the surrogate's autograd gradient
   (:mod:`.hmc`), for long curved ridges, where the random walk's autocorrelation time
-  reaches 10³ steps; no jumps between modes;
+  reaches 10³ steps; no jumps between modes. It runs at most ``HMC_CHAINS`` (128) of the
+  chains for half the draws: a trajectory costs about ten leapfrog steps, each a
+  gradient (≈ 3–4 potential evaluations; 25–60 ms for 512 chains on a 350-point
+  additive-kernel surrogate), and its draws are far less correlated (on the exact
+  curved 5-D density 128 chains x 1 000 trajectories give ESS ≥ 7 000 and split R-hat
+  ≤ 1.016, where 512 x 2 000 random-walk steps give ESS ≈ 800 and R-hat 1.2–1.4);
 - ``"auto"`` (the calibration's default): the random walk first; when it found a single
   mode but did not mix (split R-hat above ``r_hat_max`` or bulk ESS below ``ess_min``
   on some parameter, the thresholds of the ``poor_mixing`` verdict), HMC from the same
@@ -47,6 +52,7 @@ Estimator = Literal["plug_in", "mean_log", "expected"]
 Backend = Literal["vectorized", "pyro"]
 Sampler = Literal["random_walk", "hmc", "auto"]
 SAMPLERS: tuple[str, ...] = ("random_walk", "hmc", "auto")
+HMC_CHAINS = 128  # HMC runs at most this many chains, for half the draws (module docstring)
 R_HAT_MAX = 1.05  # the poor_mixing verdict's thresholds (:func:`.reliability.poor_mixing`)
 ESS_MIN = 400.0
 
@@ -150,7 +156,8 @@ def sample_surrogate_posterior(
         sampler: "random_walk", "hmc" or "auto" (module docstring).
 
     Returns:
-        ((n_chains x draws x q) unit-cube draws, kernel diagnostics: the kernel's own,
+        ((chains x draws x q) unit-cube draws — with HMC min(n_chains, ``HMC_CHAINS``)
+        chains of num_samples // 2 draws — and the kernel diagnostics: the kernel's own,
         ``sampler`` (the one whose draws these are) and, when "auto" ran both, ``random
         walk R-hat`` (the worst split R-hat that called for HMC) or ``hmc R-hat`` (HMC's,
         when its draws were not kept).
@@ -178,9 +185,9 @@ def sample_surrogate_posterior(
         if mixed:
             return draws, diag
         walk = (True, worst)
-    hmc = ReflectiveHMC(potential, starts, seed=seed)
+    hmc = ReflectiveHMC(potential, starts[:HMC_CHAINS], seed=seed)  # iid starts: any subset
     with torch.no_grad():
-        hmc_draws = _run(hmc, num_samples, warmup_steps, backend, thin, progress)
+        hmc_draws = _run(hmc, max(1, num_samples // 2), warmup_steps, backend, thin, progress)
     hmc_diag: dict[str, float | str] = {**hmc.diagnostics(), "sampler": "hmc"}
     if sampler == "hmc":
         return hmc_draws, hmc_diag

@@ -59,7 +59,8 @@ class CalibrationSettings:
         mcmc_sampler: "auto" (default): the random-walk kernel, and reflective HMC on the
             surrogate's gradient when the random walk found one mode but did not mix
             (R-hat > 1.05 or ESS < 400; on the curved 5-D target its R-hat is 1.3–1.5,
-            HMC's ≈ 1.01–1.02); "random_walk" or "hmc" force one
+            HMC's ≈ 1.01–1.02; HMC runs at most 128 of the chains for half the draws,
+            its draws being far less correlated); "random_walk" or "hmc" force one
             (:mod:`susp_bo.calibration.sampling`). Where the random walk mixes, "auto"
             gives its draws bit for bit.
         candidate_count: posterior candidates scored per refinement batch (and as many widened).

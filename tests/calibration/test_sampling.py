@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from susp_bo.calibration.mcmc import chain_diagnostics
-from susp_bo.calibration.sampling import sample_surrogate_posterior
+from susp_bo.calibration.sampling import HMC_CHAINS, sample_surrogate_posterior
 from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings
 from susp_bo.calibration.surrogate_fit import fit_surrogate
 
@@ -57,6 +57,7 @@ def test_auto_switches_to_hmc_where_the_random_walk_did_not_mix() -> None:
     assert walk_r_hat > 1.05  # the premise: the random walk did not mix
     assert diag["sampler"] == "hmc" and diag["random walk R-hat"] == pytest.approx(walk_r_hat)
     assert torch.equal(auto, hmc) and hmc_diag["sampler"] == "hmc"
+    assert auto.shape == (32, 150, 2)  # HMC: half the draws
     r_hat, ess = chain_diagnostics(auto)
     assert float(r_hat.max()) <= 1.05 and float(ess.min()) >= 400
     # the same posterior as a random walk 25x as long (both within 5 Monte Carlo errors)
@@ -68,6 +69,14 @@ def test_auto_switches_to_hmc_where_the_random_walk_did_not_mix() -> None:
     error = sd * (1.0 / ess + 1.0 / ess_long).sqrt()
     z = (auto.reshape(-1, 2).mean(0) - long_walk.reshape(-1, 2).mean(0)) / error
     assert torch.all(z.abs() < 5.0), z
+
+
+def test_hmc_runs_at_most_hmc_chains_chains_for_half_the_draws() -> None:
+    surrogate = _surrogate(_gaussian, 1)
+    draws, diag = sample_surrogate_posterior(
+        surrogate, n_chains=HMC_CHAINS + 72, warmup_steps=2, num_samples=5, seed=0, sampler="hmc"
+    )
+    assert draws.shape == (HMC_CHAINS, 2, 2) and diag["sampler"] == "hmc"
 
 
 def test_an_unknown_sampler_is_refused_by_name() -> None:
