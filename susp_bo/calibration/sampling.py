@@ -25,8 +25,10 @@ Two samplers (``sampler``):
 - ``"auto"`` (the calibration's default): the random walk first; when it found a single
   mode but did not mix (split R-hat above ``r_hat_max`` or bulk ESS below ``ess_min``
   on some parameter, the thresholds of the ``poor_mixing`` verdict), HMC from the same
-  starts, keeping HMC's draws when they mixed or, if neither did, when their worst
-  R-hat is lower. Where the random walk mixed, the
+  starts, keeping HMC's draws only when they mixed. When neither mixed the random
+  walk's draws stay: on the curved target (seed 0) HMC chains that did not mix (R-hat
+  1.40) sat in places the random walk never reached and gave MMTV 0.81 against the
+  random walk's 0.03. Where the random walk mixed, the
   draws are the random walk's, bit for bit.
 """
 
@@ -168,7 +170,6 @@ def sample_surrogate_posterior(
     starts = initial_positions(x, surrogate.train_y, n_chains, seed)
     q = x.shape[1]
     potential = surrogate_potential(surrogate, estimator)
-    walk = (True, math.inf)  # (did not mix, worst R-hat) of the random walk
     if sampler != "hmc":
         kernel = RandomWalkMetropolis(
             potential,
@@ -181,17 +182,16 @@ def sample_surrogate_posterior(
         diag: dict[str, float | str] = {**kernel.diagnostics(), "sampler": "random_walk"}
         if sampler == "random_walk" or float(diag["modes"]) > 1.0:
             return draws, diag
-        mixed, worst = _mixed(draws)
+        mixed, walk_r_hat = _mixed(draws)
         if mixed:
             return draws, diag
-        walk = (True, worst)
     hmc = ReflectiveHMC(potential, starts[:HMC_CHAINS], seed=seed)  # iid starts: any subset
     with torch.no_grad():
         hmc_draws = _run(hmc, max(1, num_samples // 2), warmup_steps, backend, thin, progress)
     hmc_diag: dict[str, float | str] = {**hmc.diagnostics(), "sampler": "hmc"}
     if sampler == "hmc":
         return hmc_draws, hmc_diag
-    mixed, worst = _mixed(hmc_draws)
-    if not (not mixed, worst) < walk:
-        return draws, {**diag, "hmc R-hat": worst}
-    return hmc_draws, {**hmc_diag, "random walk R-hat": walk[1]}
+    mixed, hmc_r_hat = _mixed(hmc_draws)
+    if not mixed:  # neither mixed: the random walk's draws, as without "auto"
+        return draws, {**diag, "hmc R-hat": hmc_r_hat}
+    return hmc_draws, {**hmc_diag, "random walk R-hat": walk_r_hat}
