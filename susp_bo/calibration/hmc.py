@@ -42,7 +42,8 @@ import math
 from collections.abc import Callable
 
 import torch
-from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
+
+from susp_bo.calibration.vectorised_kernel import VectorisedKernel
 
 Potential = Callable[[torch.Tensor], torch.Tensor]
 
@@ -50,7 +51,7 @@ _REFLECTIONS = 4  # wall reflections per position step before a trajectory is re
 _FIRST_WINDOW = 25  # steps of the first mass-adaptation window (doubling after)
 
 
-class ReflectiveHMC(MCMCKernel):
+class ReflectiveHMC(VectorisedKernel):
     """Vectorised HMC with a diagonal mass matrix, reflected at the walls of a box.
 
     Args:
@@ -66,8 +67,6 @@ class ReflectiveHMC(MCMCKernel):
         seed: seed of the kernel's own generator (reset in ``setup``).
         site: name of the parameter in the params dict.
     """
-
-    transforms: dict = {}  # noqa: RUF012  (tells pyro.infer.MCMC there is no model)
 
     def __init__(
         self,
@@ -110,21 +109,7 @@ class ReflectiveHMC(MCMCKernel):
         self.model = None
         self.setup(0)
 
-    # -- MCMCKernel interface -------------------------------------------------------------
-    @property
-    def initial_params(self) -> dict[str, torch.Tensor]:
-        """Initial state {site: (n_chains x q)}."""
-        return {self.site: self._init}
-
-    @initial_params.setter
-    def initial_params(self, params: dict[str, torch.Tensor]) -> None:
-        init = torch.as_tensor(params[self.site], dtype=torch.float64)
-        if init.shape != self._init.shape:
-            raise ValueError(
-                f"initial_params: shape {tuple(init.shape)} != {tuple(self._init.shape)}"
-            )
-        self._init = init
-
+    # -- MCMCKernel interface (initial_params: VectorisedKernel) ------------------------
     def setup(self, warmup_steps: int, *args: object, **kwargs: object) -> None:
         """Resets generator, step counter, step size and mass; evaluates the initial state."""
         self.warmup_steps = int(warmup_steps)

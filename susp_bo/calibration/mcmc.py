@@ -48,10 +48,10 @@ from collections.abc import Callable
 import pyro.ops.stats as pyro_stats
 import torch
 from pyro.infer import MCMC
-from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 
 from susp_bo.calibration.hmc import ReflectiveHMC
 from susp_bo.calibration.mode_jumps import MixtureProposal, find_modes
+from susp_bo.calibration.vectorised_kernel import VectorisedKernel
 from susp_bo.progress import progress_bar, redrawn_bars
 
 Potential = Callable[[torch.Tensor], torch.Tensor]
@@ -62,7 +62,7 @@ def default_target_acceptance(q: int) -> float:
     return {1: 0.44, 2: 0.35, 3: 0.31, 4: 0.28}.get(q, 0.234)
 
 
-class RandomWalkMetropolis(MCMCKernel):
+class RandomWalkMetropolis(VectorisedKernel):
     """Vectorised adaptive random-walk MH kernel on a potential function.
 
     Args:
@@ -77,8 +77,6 @@ class RandomWalkMetropolis(MCMCKernel):
         jump_probability: per chain and step, the probability of a mode jump once
             separated modes were found half-way through warm-up (0 = never look).
     """
-
-    transforms: dict = {}  # noqa: RUF012  (tells pyro.infer.MCMC there is no model)
 
     def __init__(
         self,
@@ -118,21 +116,7 @@ class RandomWalkMetropolis(MCMCKernel):
         self.model = None
         self.setup(0)
 
-    # -- MCMCKernel interface -------------------------------------------------------------
-    @property
-    def initial_params(self) -> dict[str, torch.Tensor]:
-        """Initial state {site: (n_chains x q)}."""
-        return {self.site: self._init}
-
-    @initial_params.setter
-    def initial_params(self, params: dict[str, torch.Tensor]) -> None:
-        init = torch.as_tensor(params[self.site], dtype=torch.float64)
-        if init.shape != self._init.shape:
-            raise ValueError(
-                f"initial_params: shape {tuple(init.shape)} != {tuple(self._init.shape)}"
-            )
-        self._init = init
-
+    # -- MCMCKernel interface (initial_params: VectorisedKernel) ------------------------
     def setup(self, warmup_steps: int, *args: object, **kwargs: object) -> None:
         """Resets generator, step counter and proposal; evaluates the initial potential."""
         self.warmup_steps = int(warmup_steps)
