@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 
 import numpy as np
@@ -10,7 +11,13 @@ import pytest
 import torch
 
 from susp_bo.calibration.mcmc import chain_diagnostics
-from susp_bo.calibration.sampling import HMC_CHAINS, sample_surrogate_posterior
+from susp_bo.calibration.reliability import poor_mixing
+from susp_bo.calibration.sampling import (
+    ESS_MIN,
+    HMC_CHAINS,
+    R_HAT_MAX,
+    sample_surrogate_posterior,
+)
 from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings
 from susp_bo.calibration.surrogate_fit import fit_surrogate
 
@@ -77,6 +84,11 @@ def test_hmc_runs_at_most_hmc_chains_chains_for_half_the_draws() -> None:
         surrogate, n_chains=HMC_CHAINS + 72, warmup_steps=2, num_samples=5, seed=0, sampler="hmc"
     )
     assert draws.shape == (HMC_CHAINS, 2, 2) and diag["sampler"] == "hmc"
+
+
+def test_auto_switches_on_the_poor_mixing_verdicts_thresholds() -> None:
+    defaults = inspect.signature(poor_mixing).parameters
+    assert (defaults["r_hat_max"].default, defaults["ess_min"].default) == (R_HAT_MAX, ESS_MIN)
 
 
 def test_an_unknown_sampler_is_refused_by_name() -> None:
