@@ -2,7 +2,7 @@
 
 The random-walk kernel (:mod:`.mcmc`) mixes slowly on long curved ridges: on the
 chained-banana target (``curved_chain_5d``) its integrated autocorrelation time is of
-order 10³ steps, so 512 chains of 2 000 steps leave split R-hat at 1.2–1.5 even on the
+order 10³ steps, so 512 chains of 2 000 steps leave split R-hat at 1.2–1.4 even on the
 exact density. The surrogate's log L̃ is a smooth torch expression of u, so its gradient
 is available by autograd; Hamiltonian trajectories follow a ridge instead of diffusing
 across it.
