@@ -77,6 +77,7 @@ from susp_bo.calibration.posterior import summarize
 from susp_bo.calibration.reliability import assess
 from susp_bo.calibration.result import CalibrationResult, IterationReport, Phase
 from susp_bo.calibration.sampling import (
+    mean_sd_at_draws,
     sample_surrogate_posterior,
     surrogate_log_likelihood,
 )
@@ -358,6 +359,7 @@ def calibrate(
         with torch.no_grad():
             predicted_max = float(log_l(u_map)[0])
             predicted_max_sd = float(surrogate.log_likelihood_uncertainty(u_map)[1][0])
+        draws_sd = mean_sd_at_draws(surrogate, draws_u)
     searched = [h for h in history if h.phase != "check"]
     reliability = assess(
         names=names,
@@ -378,6 +380,7 @@ def calibrate(
         box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names),
         modes=int(diag.get("modes", 1) or 1),
         sampler=str(diag.get("sampler", "random_walk")),
+        draws_sd=draws_sd,
     )
     logger.info(reliability.sentence)
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)

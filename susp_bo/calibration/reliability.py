@@ -18,7 +18,11 @@ Rules (each a pure function of numbers, testable alone):
   ``z`` GP standard deviations below the surrogate's predicted maximum (its value
   at the joint MAP); or the refinement stopped on the budget rather than on its
   criterion (no refinement at all, EGO still running, or the posterior mean of
-  sd[log L̃] still above ``uncertainty_tolerance`` nats).
+  sd[log L̃] still above ``uncertainty_tolerance`` nats); or, however the loop
+  stopped, the surrogate is unsure where the *reported* draws lie (their mean
+  sd[log L̃] above ``uncertainty_tolerance``): the refinement's criterion was met on
+  the random walk's candidates, but the final sampler (HMC under ``auto``) went where
+  nothing was evaluated.
 - ``below_expected_fit`` (:func:`below_expected_fit`): when the output-error model
   gives the log L expected at the true parameters (mean, sd), the best observed
   log L lies far below it (more than ``gap_tolerance`` + ``truth_z`` sd). The data
@@ -168,6 +172,7 @@ def not_converged(
     gap_tolerance: float = 1.0,
     z: float = 2.0,
     uncertainty_tolerance: float = 0.3,
+    draws_sd: float = math.nan,
 ) -> Reason | None:
     """``not_converged`` when the search did not reach the optimum (module docstring).
 
@@ -181,7 +186,10 @@ def not_converged(
         gap_tolerance: nats allowed between the predicted maximum and the best observed.
         z: GP standard deviations allowed on top of ``gap_tolerance``.
         uncertainty_tolerance: posterior mean sd[log L̃] (nats) above which a refinement
-            stopped by the budget counts as unfinished.
+            stopped by the budget counts as unfinished, and above which the reported
+            draws' mean sd[log L̃] counts as unexplored.
+        draws_sd: mean sd[log L̃] (nats) over the reported posterior draws; NaN = not
+            measured (the rule then looks only at the search).
     """
     findings: list[str] = []
     reason: Reason = {"code": "not_converged"}
@@ -208,6 +216,13 @@ def not_converged(
     if unfinished is not None:
         findings.append(unfinished)
         reason.update(stopped_by="budget", last_phase=last_phase, last_criterion=last_criterion)
+    if math.isfinite(draws_sd) and draws_sd > uncertainty_tolerance:
+        findings.append(
+            f"the surrogate is unsure where the reported posterior lies (mean sd of log L "
+            f"over its draws {draws_sd:.2f} nats > {uncertainty_tolerance:g}): no evaluation "
+            "checked that region"
+        )
+        reason.update(draws_sd_nats=float(draws_sd))
     if not findings:
         return None
     reason["message"] = "; ".join(findings)
@@ -418,6 +433,7 @@ def assess(
     box_edge: Reason | None = None,
     modes: int = 1,
     sampler: str = "random_walk",
+    draws_sd: float = math.nan,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -427,6 +443,7 @@ def assess(
         modes: separated modes the sampler found (``RandomWalkMetropolis.diagnostics``).
         sampler: the kernel whose draws are assessed ("random_walk" or "hmc"; the
             trusted sentence names HMC).
+        draws_sd: mean sd[log L̃] (nats) over the reported draws (:func:`not_converged`).
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
@@ -439,6 +456,7 @@ def assess(
             stop_reason=stop_reason,
             last_phase=last_phase,
             last_criterion=last_criterion,
+            draws_sd=draws_sd,
         ),
         below_expected_fit(best_log_likelihood, expected_at_truth),
         at_bound(u, names, bounds),
@@ -465,6 +483,7 @@ def assess(
         "ess_min": float(np.min(ess)),
         "modes": int(modes),
         "sampler": sampler,
+        "draws_sd_nats": float(draws_sd) if math.isfinite(draws_sd) else None,
     }
     return Reliability(
         verdict="not_trusted" if reasons else "trusted",

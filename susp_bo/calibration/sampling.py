@@ -23,8 +23,8 @@ Two samplers (``sampler``):
   curved 5-D density 128 chains x 1 000 trajectories give ESS ≥ 7 000 and split R-hat
   ≤ 1.016, where 512 x 2 000 random-walk steps give ESS ≈ 800 and R-hat 1.2–1.4);
 - ``"auto"`` (the calibration's default): the random walk first; when it found a single
-  mode but did not mix (split R-hat above ``r_hat_max`` or bulk ESS below ``ess_min``
-  on some parameter, the thresholds of the ``poor_mixing`` verdict), HMC from the same
+  mode but did not mix (the ``poor_mixing`` verdict's own test: split R-hat above 1.05
+  or bulk ESS below 400 on some parameter), HMC from the same
   starts, keeping HMC's draws only when they mixed. When neither mixed the random
   walk's draws stay: on the curved target (seed 0) HMC chains that did not mix (R-hat
   1.40) sat in places the random walk never reached and gave MMTV 0.81 against the
@@ -48,6 +48,7 @@ from susp_bo.calibration.mcmc import (
     run_pyro,
     run_vectorized,
 )
+from susp_bo.calibration.reliability import poor_mixing
 from susp_bo.calibration.surrogate import Surrogate
 
 Estimator = Literal["plug_in", "mean_log", "expected"]
@@ -55,8 +56,6 @@ Backend = Literal["vectorized", "pyro"]
 Sampler = Literal["random_walk", "hmc", "auto"]
 SAMPLERS: tuple[str, ...] = ("random_walk", "hmc", "auto")
 HMC_CHAINS = 128  # HMC runs at most this many chains, for half the draws (module docstring)
-R_HAT_MAX = 1.05  # the poor_mixing verdict's thresholds (:func:`.reliability.poor_mixing`)
-ESS_MIN = 400.0
 
 
 def surrogate_log_likelihood(
@@ -109,10 +108,11 @@ def initial_positions(
 
 
 def _mixed(draws: torch.Tensor) -> tuple[bool, float]:
-    """(split R-hat <= R_HAT_MAX and ESS >= ESS_MIN on every parameter, worst R-hat)."""
+    """(the ``poor_mixing`` verdict would not fire on these draws, worst split R-hat)."""
     r_hat, ess = chain_diagnostics(draws)
     worst = float(torch.nan_to_num(r_hat, nan=math.inf).max())
-    return worst <= R_HAT_MAX and bool(torch.all(ess >= ESS_MIN)), worst
+    names = [str(k) for k in range(draws.shape[-1])]
+    return poor_mixing(r_hat.numpy(), ess.numpy(), names) is None, worst
 
 
 def _run(
@@ -195,3 +195,26 @@ def sample_surrogate_posterior(
     if not mixed:  # neither mixed: the random walk's draws, as without "auto"
         return draws, {**diag, "hmc R-hat": hmc_r_hat}
     return hmc_draws, {**hmc_diag, "random walk R-hat": walk_r_hat}
+
+
+def mean_sd_at_draws(surrogate: Surrogate, draws_u: torch.Tensor, count: int = 2048) -> float:
+    """Mean delta-method sd of log L̃ (nats) over ``count`` evenly spaced draws.
+
+    Where the surrogate's posterior lies in evaluated ground this is small (the
+    refinement stops when its random-walk candidates reach ``refine_tolerance``, 0.02
+    nats by default); a large value says the reported draws went where nothing was
+    evaluated (the ``not_converged`` verdict's last sub-rule, :mod:`.reliability`).
+
+    Args:
+        surrogate: the fitted surrogate.
+        draws_u: (... x q) draws in the surrogate's unit cube (chains pooled here).
+        count: draws looked at (deterministic, evenly spaced: no random state).
+    """
+    q = surrogate.train_x.shape[-1]
+    flat = draws_u.reshape(-1, q)
+    if flat.shape[0] == 0:
+        return math.nan
+    idx = torch.linspace(0, flat.shape[0] - 1, min(count, flat.shape[0])).round().long()
+    with torch.no_grad():
+        _, sd = surrogate.log_likelihood_uncertainty(flat[idx].to(torch.float64))
+    return float(sd.mean())

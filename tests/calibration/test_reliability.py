@@ -51,6 +51,13 @@ def test_not_converged_sub_rules() -> None:
     unfinished = not_converged(**_converged(stop_reason="budget", last_criterion=0.8))
     assert unfinished is not None and "0.80 nats" in unfinished["message"]
     assert not_converged(**_converged(stop_reason="budget", last_criterion=0.1)) is None
+    # the reported draws where the surrogate is unsure (HMC went where nothing was
+    # evaluated), whatever stopped the loop; NaN (not measured) never fires
+    unexplored = not_converged(**_converged(draws_sd=0.8))
+    assert unexplored is not None and "0.80 nats > 0.3" in unexplored["message"]
+    assert unexplored["draws_sd_nats"] == pytest.approx(0.8)
+    assert not_converged(**_converged(draws_sd=0.1)) is None
+    assert not_converged(**_converged(draws_sd=float("nan"))) is None
 
 
 def test_below_expected_fit_fires_only_far_below_the_log_likelihood_expected_at_the_truth() -> None:

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Callable
 
 import numpy as np
@@ -11,11 +10,9 @@ import pytest
 import torch
 
 from susp_bo.calibration.mcmc import chain_diagnostics
-from susp_bo.calibration.reliability import poor_mixing
 from susp_bo.calibration.sampling import (
-    ESS_MIN,
     HMC_CHAINS,
-    R_HAT_MAX,
+    mean_sd_at_draws,
     sample_surrogate_posterior,
 )
 from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings
@@ -86,14 +83,27 @@ def test_hmc_runs_at_most_hmc_chains_chains_for_half_the_draws() -> None:
     assert draws.shape == (HMC_CHAINS, 2, 2) and diag["sampler"] == "hmc"
 
 
-def test_auto_switches_on_the_poor_mixing_verdicts_thresholds() -> None:
-    defaults = inspect.signature(poor_mixing).parameters
-    assert (defaults["r_hat_max"].default, defaults["ess_min"].default) == (R_HAT_MAX, ESS_MIN)
-
-
 def test_an_unknown_sampler_is_refused_by_name() -> None:
     surrogate = _surrogate(_gaussian, 1)
     with pytest.raises(ValueError, match="sampler: 'nuts', expected one of random_walk, hmc"):
         sample_surrogate_posterior(
             surrogate, n_chains=4, warmup_steps=1, num_samples=1, seed=0, sampler="nuts"
         )
+
+
+def test_mean_sd_at_draws_is_small_where_evaluated_and_large_where_not() -> None:
+    """The ``not_converged`` sub-rule's number: draws among the training points against
+    draws in a corner no evaluation came near (the GP knows it does not know there)."""
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0.3, 0.7, size=(120, 2))
+    y = _gaussian(x) + 2.0 * np.sin(9.0 * x[:, 0]) * np.cos(7.0 * x[:, 1])  # no quadratic
+    surrogate = fit_surrogate(x, y, SurrogateSettings(), seed=0)
+    inside = torch.as_tensor(rng.uniform(0.35, 0.65, size=(4, 500, 2)))
+    corner = torch.as_tensor(rng.uniform(0.0, 0.08, size=(4, 500, 2)))
+    near = mean_sd_at_draws(surrogate, inside)
+    far = mean_sd_at_draws(surrogate, corner)
+    assert near < 0.3 < far, (near, far)
+    # deterministic (evenly spaced draws, no random state) and chain-pooled
+    assert mean_sd_at_draws(surrogate, inside) == near
+    assert mean_sd_at_draws(surrogate, inside.reshape(-1, 2)) == pytest.approx(near)
+    assert np.isnan(mean_sd_at_draws(surrogate, inside[:, :0]))
