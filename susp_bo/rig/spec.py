@@ -17,7 +17,9 @@ calibrated like any other.
 
 Every check runs when the spec is built, so bad input fails before any
 simulation: unknown names, non-finite values, non-positive masses/inertias,
-negative stiffnesses/dampings, calibration values outside their interval.
+negative stiffnesses/dampings, calibration values outside their interval. The entries
+(calibrated parameters, sensors, simulation defaults) and the sign rules are in
+:mod:`susp_bo.rig.spec_entries`; this module assembles and parses the whole rig.
 """
 
 from __future__ import annotations
@@ -37,9 +39,29 @@ from numpy.typing import NDArray
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.components import is_component_name, split_component_name
 from susp_bo.rig.schema import check_rig_keys
+from susp_bo.rig.spec_entries import (
+    SIMULATION_LIMITS,
+    CalibrationParameter,
+    SensorSpec,
+    SimulationSettings,
+    check_parameter_value,
+    require_number,
+)
 
 if TYPE_CHECKING:
     from susp_bo.rig.spectra import SpectrumSettings
+
+__all__ = [
+    "PARAMETER_SECTIONS",
+    "SIMULATION_LIMITS",
+    "CalibrationParameter",
+    "RigSpec",
+    "SensorSpec",
+    "SimulationSettings",
+    "check_parameter_value",
+    "load_rig_spec",
+    "parse_rig",
+]
 
 PARAMETER_SECTIONS = (
     "carbody",
@@ -52,207 +74,6 @@ PARAMETER_SECTIONS = (
     "bump_stop",
     "contact",
 )
-SENSOR_DIRECTIONS = ("vertical", "lateral")
-TRACK_QUALITIES = ("low", "high")
-# Parameter-name fragments and the sign they require (first match wins).
-_POSITIVE_WORDS = ("mass", "inertia", "radius", "coefficient", "spacing", "wheelbase")
-_NON_NEGATIVE_WORDS = ("stiffness", "damping", "knee", "ratio", "gap", "smoothing", "conicity")
-
-
-def _number(where: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{where}: got {value!r}; must be a number")
-    return float(value)
-
-
-def check_parameter_value(name: str, value: float) -> None:
-    """Raise ValueError unless ``value`` is admissible for a parameter called ``name``.
-
-    Rules by meaning: finite always; names containing mass, inertia, radius,
-    coefficient, spacing or wheelbase must be > 0; stiffness, damping, knee,
-    ratio, gap, smoothing or conicity must be >= 0. A per-component name
-    ``<parameter>@<component>`` follows the rule of its ``<parameter>``.
-    """
-    if not math.isfinite(value):
-        raise ValueError(f"parameter {name}: got {value}; must be finite")
-    meaning = name.split("@", 1)[0]
-    if any(word in meaning for word in _POSITIVE_WORDS):
-        if value <= 0.0:
-            raise ValueError(f"parameter {name}: got {value}; must be > 0")
-    elif any(word in meaning for word in _NON_NEGATIVE_WORDS) and value < 0.0:
-        raise ValueError(f"parameter {name}: got {value}; must be >= 0")
-
-
-@dataclass(frozen=True)
-class CalibrationParameter:
-    """One component of the calibrated parameter ``w`` and its admissible interval.
-
-    Args:
-        name: a named rig parameter, e.g. ``primary_vertical_stiffness``.
-        lower: lower bound of the admissible interval (physical unit).
-        upper: upper bound, > lower.
-        reference: nominal value, within [lower, upper].
-        unit: physical unit, e.g. ``N/m``.
-        description: one line for engineers.
-        acceptable: maintenance limits ``(lo, hi)`` in the same unit, strictly
-            inside ``(lower, upper)`` (the admissible interval must be wider, so
-            that a posterior can leave the acceptable domain); None = no limits.
-            Not part of the rig fingerprint: the limits change no simulation,
-            so evaluation stores stay valid when they are edited.
-    """
-
-    name: str
-    lower: float
-    upper: float
-    reference: float
-    unit: str = ""
-    description: str = ""
-    acceptable: tuple[float, float] | None = None
-
-    def __post_init__(self) -> None:
-        where = f"CalibrationParameter {self.name!r}"
-        for key in ("lower", "upper", "reference"):
-            number = _number(f"{where}.{key}", getattr(self, key))
-            if not math.isfinite(number):
-                raise ValueError(f"{where}.{key}: got {number}; must be finite")
-            object.__setattr__(self, key, number)
-        if not self.lower < self.upper:
-            raise ValueError(f"{where}: lower {self.lower} must be < upper {self.upper}")
-        if not self.lower <= self.reference <= self.upper:
-            raise ValueError(
-                f"{where}.reference: got {self.reference}; must lie in [{self.lower}, {self.upper}]"
-            )
-        if self.acceptable is not None:
-            object.__setattr__(self, "acceptable", self._checked_acceptable(where))
-
-    def _checked_acceptable(self, where: str) -> tuple[float, float]:
-        value = self.acceptable
-        unit = f" {self.unit}" if self.unit else ""
-        if (
-            isinstance(value, str | bytes) or not hasattr(value, "__len__") or len(value) != 2  # type: ignore[arg-type]
-        ):
-            raise ValueError(
-                f"{where}.acceptable: got {value!r}; expected [lo, hi] (two numbers{unit})"
-            )
-        lo, hi = (_number(f"{where}.acceptable", v) for v in value)  # type: ignore[union-attr]
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            raise ValueError(f"{where}.acceptable: got [{lo}, {hi}]; must be finite")
-        if not lo < hi:
-            raise ValueError(f"{where}.acceptable: got [{lo}, {hi}]{unit}; lo must be < hi")
-        if not self.lower < lo or not hi < self.upper:
-            raise ValueError(
-                f"{where}.acceptable: got [{lo}, {hi}]{unit}; must lie strictly inside the "
-                f"admissible interval ({self.lower}, {self.upper}){unit} — C_w must be wider "
-                "than the acceptable domain so that a posterior can leave it"
-            )
-        return (lo, hi)
-
-    def outside_acceptable(self, values: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """Which ``values`` (any shape, physical unit) lie outside the acceptable domain.
-
-        Raises:
-            ValueError: the parameter has no acceptable domain.
-        """
-        if self.acceptable is None:
-            raise ValueError(f"CalibrationParameter {self.name!r}: no acceptable domain")
-        lo, hi = self.acceptable
-        values = np.asarray(values, dtype=np.float64)
-        return (values < lo) | (values > hi)
-
-
-@dataclass(frozen=True)
-class SensorSpec:
-    """An accelerometer: a named point on a body measuring along one body axis.
-
-    Args:
-        name: channel name, e.g. ``carbody_front_vertical``.
-        body: body name (``carbody``, ``bogie_front``, ``bogie_rear``).
-        position_m: (x, y, z) in vehicle coordinates (x from the car centre, + forward;
-            z above the rail top), m.
-        direction: ``vertical`` or ``lateral`` (body axes z or y).
-    """
-
-    name: str
-    body: str
-    position_m: tuple[float, float, float]
-    direction: str
-
-    def __post_init__(self) -> None:
-        if self.direction not in SENSOR_DIRECTIONS:
-            raise ValueError(
-                f"sensor {self.name!r}.direction: got {self.direction!r}; allowed "
-                f"{', '.join(SENSOR_DIRECTIONS)}"
-            )
-        position = tuple(_number(f"sensor {self.name!r}.position_m", v) for v in self.position_m)
-        if len(position) != 3 or not all(math.isfinite(v) for v in position):
-            raise ValueError(
-                f"sensor {self.name!r}.position_m: got {self.position_m!r}; need 3 finite numbers"
-            )
-        object.__setattr__(self, "position_m", position)
-
-
-SIMULATION_LIMITS: dict[str, tuple[float, float, str]] = {
-    "time_step_s": (0.0, 0.01, "s"),
-    "speed_m_s": (0.0, 200.0, "m/s"),
-    "duration_s": (0.0, 1e5, "s"),
-    "sample_rate_hz": (0.0, 1e5, "Hz"),
-    "max_displacement_m": (0.0, 10.0, "m"),
-}
-"""Allowed range (low, high] and unit of each numeric ``[simulation]`` setting."""
-
-
-@dataclass(frozen=True)
-class SimulationSettings:
-    """Defaults of a time-domain run.
-
-    Args:
-        time_step_s: fixed PyBullet step (s), in (0, 0.01].
-        speed_m_s: default train speed (m/s), > 0.
-        duration_s: recorded time after the warm-up (s), > 0.
-        warm_up_s: discarded initial transient (s), >= 0.
-        sample_rate_hz: rate of the output signals (Hz); ``1/time_step_s`` must be
-            an integer multiple of it.
-        track_quality: ``low`` or ``high`` (German PSD) for synthetic tracks.
-        max_displacement_m: divergence threshold on any body displacement (m) or
-            rotation (rad); exceeding it raises SimulationFailed.
-    """
-
-    time_step_s: float = 0.002
-    speed_m_s: float = 83.33
-    duration_s: float = 30.0
-    warm_up_s: float = 5.0
-    sample_rate_hz: float = 100.0
-    track_quality: str = "low"
-    max_displacement_m: float = 0.2
-
-    def __post_init__(self) -> None:
-        for key, (low, high, unit) in SIMULATION_LIMITS.items():
-            value = _number(f"[simulation] {key}", getattr(self, key))
-            if not (math.isfinite(value) and low < value <= high):
-                raise ValueError(
-                    f"[simulation] {key}: got {value:g}; allowed range ({low:g}, {high:g}] {unit}"
-                )
-            object.__setattr__(self, key, value)
-        warm = _number("[simulation] warm_up_s", self.warm_up_s)
-        if not (math.isfinite(warm) and warm >= 0.0):
-            raise ValueError(f"[simulation] warm_up_s: got {warm}; must be >= 0")
-        object.__setattr__(self, "warm_up_s", warm)
-        if self.track_quality not in TRACK_QUALITIES:
-            raise ValueError(
-                f"[simulation] track_quality: got {self.track_quality!r}; allowed "
-                f"{', '.join(TRACK_QUALITIES)}"
-            )
-        ratio = 1.0 / (self.time_step_s * self.sample_rate_hz)
-        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
-            raise ValueError(
-                f"[simulation] sample_rate_hz: got {self.sample_rate_hz} Hz; "
-                f"1/time_step_s = {1.0 / self.time_step_s} Hz must be an integer multiple of it"
-            )
-
-    @property
-    def steps_per_sample(self) -> int:
-        """PyBullet steps per output sample."""
-        return round(1.0 / (self.time_step_s * self.sample_rate_hz))
 
 
 @dataclass(frozen=True)
@@ -290,7 +111,7 @@ class RigSpec:
     def __post_init__(self) -> None:
         from susp_bo.rig.assembly import required_parameters
 
-        params = {str(k): _number(f"parameter {k}", v) for k, v in self.parameters.items()}
+        params = {str(k): require_number(f"parameter {k}", v) for k, v in self.parameters.items()}
         for key, value in params.items():
             check_parameter_value(key, value)
         missing = [k for k in required_parameters(self.topology) if k not in params]
@@ -383,7 +204,7 @@ class RigSpec:
                     f"rig {self.name!r}: unknown parameter {key!r}; known parameters: "
                     f"{', '.join(sorted(params))}"
                 )
-            params[key] = _number(f"parameter {key}", value)
+            params[key] = require_number(f"parameter {key}", value)
         return replace(self, parameters=params)
 
     def with_simulation(self, **changes: Any) -> RigSpec:
@@ -449,12 +270,12 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
     parameters: dict[str, float] = {}
     for section in PARAMETER_SECTIONS:
         for key, value in data.get(section, {}).items():
-            parameters[f"{section}_{key}"] = _number(f"{source}: [{section}] {key}", value)
+            parameters[f"{section}_{key}"] = require_number(f"{source}: [{section}] {key}", value)
     for effect, table in data.get("effects", {}).items():
         # effect parameters are named parameters "<effect>_<key>" (calibratable like any other)
         for key, value in dict(table).items():
             if key != "enabled" and isinstance(value, int | float) and not isinstance(value, bool):
-                parameters[f"{effect}_{key}"] = _number(
+                parameters[f"{effect}_{key}"] = require_number(
                     f"{source}: [effects.{effect}] {key}", value
                 )
     sensors = []
