@@ -14,12 +14,17 @@ import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+import tomllib
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
+import tomli_w
 import torch
 from hypothesis import settings
+
+from susp_bo.rig.catalog import rig_path
 
 settings.register_profile("ci", derandomize=True, database=None, print_blob=True)
 settings.register_profile("dev", print_blob=True)
@@ -40,3 +45,24 @@ def _float64_and_seeded_torch() -> Iterator[None]:
     torch.manual_seed(0)
     yield
     torch.set_default_dtype(previous)
+
+
+FAST_TIME_STEP_S = 0.005
+"""The fast rig's PyBullet step (s): 200 Hz, the coarsest step the 100 Hz output allows.
+
+Its spectra differ from the 2 ms reference step's by up to 0.27 in log amplitude (rms 0.05,
+measured on three tracks); every test on it synthesises its data with the same rig, so the
+model stays exact for them, at 2.4x less simulation time."""
+
+
+@pytest.fixture(scope="session")
+def fast_rig(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reference rig made cheap for end-to-end tests: 8 s records after 1 s warm-up,
+    4 s Welch segments, a 5 ms step (:data:`FAST_TIME_STEP_S`)."""
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    document["rig"]["name"] = "hst_trailer_fast"
+    document["simulation"].update(duration_s=8.0, warm_up_s=1.0, time_step_s=FAST_TIME_STEP_S)
+    document["spectrum"].update(segment_s=4.0, f_min_hz=0.5, n_frequencies=32)
+    path = tmp_path_factory.mktemp("rigs") / "hst_trailer_fast.toml"
+    path.write_text(tomli_w.dumps(document))
+    return path

@@ -40,6 +40,16 @@ def default_design_size(q: int) -> int:
     return max(10, 5 * q)
 
 
+def sobol_first_point(engine: torch.quasirandom.SobolEngine) -> np.ndarray:
+    """The first point (q,) of a fresh scrambled ``engine``, independent of torch's default
+    dtype: its scrambling shift / 2^MAXBIT, rounded to float32 (what ``draw`` returns under
+    torch's float32 default), as float64."""
+    if engine.num_generated != 0:
+        raise ValueError("engine: has drawn points already; its first point is gone")
+    shift = engine.shift.to(torch.float32) / float(2**engine.MAXBIT)
+    return shift.to(torch.float64).numpy()
+
+
 def space_filling_design(
     n: int, bounds: np.ndarray, seed: int, method: DesignMethod = "sobol"
 ) -> np.ndarray:
@@ -52,6 +62,14 @@ def space_filling_design(
         method: "sobol" (Owen-scrambled Sobol' sequence, first n points) or "lhs"
             (Latin hypercube optimised for centred discrepancy).
 
+    The same design whatever torch's default dtype: torch's ``SobolEngine`` computes the
+    sequence's first point in the default dtype when it is built (float32 unless the
+    caller changed it; the other points in the dtype asked for), so a program that had
+    called ``torch.set_default_dtype(torch.float64)`` got another first point, and so
+    another calibration, than ``susp-bo``. The first point is computed here explicitly,
+    rounded to float32 as torch's own default gives it: the design every recorded result
+    of this tool was computed with (:func:`sobol_first_point`).
+
     Returns:
         (n x q) design in physical units.
     """
@@ -61,7 +79,9 @@ def space_filling_design(
     q = b.shape[1]
     if method == "sobol":
         engine = torch.quasirandom.SobolEngine(dimension=q, scramble=True, seed=seed)
+        first = sobol_first_point(engine)
         unit = engine.draw(n, dtype=torch.float64).numpy()
+        unit[0] = first
     elif method == "lhs":
         sampler = qmc.LatinHypercube(d=q, optimization="random-cd", rng=np.random.default_rng(seed))
         unit = sampler.random(n)

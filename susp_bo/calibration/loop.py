@@ -71,7 +71,7 @@ from susp_bo.calibration.loop_step import (
     fit_in_box,
     propose_check,
     propose_step,
-    torch_threads,
+    torch_state,
 )
 from susp_bo.calibration.posterior import summarize
 from susp_bo.calibration.reliability import assess
@@ -123,7 +123,7 @@ def _run_basin_phase(
         data.add("basin", w, values, float(finite.max()) if finite.size else math.nan)
         return values
 
-    with torch_threads(settings.num_threads):
+    with torch_state(settings.num_threads):
         climbs = basin_phase(
             to_unit(x, bounds),
             y,
@@ -277,7 +277,7 @@ def calibrate(
     while x.shape[0] < main_budget:
         iteration += 1
         size = min(settings.batch_size, main_budget - x.shape[0])
-        with torch_threads(settings.num_threads):
+        with torch_state(settings.num_threads):
             step = propose_step(
                 x,
                 y,
@@ -326,7 +326,7 @@ def calibrate(
         record_iteration(iteration, phase, x, y, step.criterion, history, on_iteration)
     check = None
     if n_check > 0:
-        with torch_threads(settings.num_threads):
+        with torch_state(settings.num_threads):
             u, predicted, sd, noise = propose_check(x, y, box, n_check, settings, boxed, laplace)
         w_new = from_unit(u.numpy(), box)
         y_new = evaluate_checked(evaluate, w_new)
@@ -336,7 +336,7 @@ def calibrate(
         record_iteration(iteration + 1, "check", x, y, check.max_abs_error, history, on_iteration)
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
-    with torch_threads(settings.num_threads):
+    with torch_state(settings.num_threads):
         surrogate = fit_in_box(x, y, box, settings, FINAL_ITERATION, boxed, laplace)
         draws_u, diag = sample_surrogate_posterior(
             surrogate,

@@ -56,6 +56,32 @@ def torch_threads(n: int | None) -> Iterator[None]:
         torch.set_num_threads(previous)
 
 
+STOCK_DEFAULT_DTYPE = torch.float32
+"""torch's own default dtype, the one this tool's torch work runs under (:func:`torch_state`)."""
+
+
+@contextmanager
+def torch_state(num_threads: int | None) -> Iterator[None]:
+    """The torch state of this tool's torch work (surrogate, acquisition, check, MCMC):
+    ``num_threads`` intra-op threads (:func:`torch_threads`) and torch's stock default
+    dtype, both restored afterwards.
+
+    The data are float64 throughout; the default dtype only reaches the numbers torch and
+    its libraries make from Python floats (the GP's prior and constraint parameters,
+    botorch's defaults). Pinning it makes a calibration the same whatever the caller set
+    (a notebook that called ``torch.set_default_dtype(torch.float64)``, as BoTorch's
+    tutorials do, got another result than ``susp-bo``); torch's stock float32 is the one
+    every recorded result of this tool was computed under.
+    """
+    previous = torch.get_default_dtype()
+    torch.set_default_dtype(STOCK_DEFAULT_DTYPE)
+    try:
+        with torch_threads(num_threads):
+            yield
+    finally:
+        torch.set_default_dtype(previous)
+
+
 def derived_seed(master: int, iteration: int, purpose: int) -> int:
     """The seed of one random choice: from the master seed, the iteration and its purpose."""
     return int(np.random.SeedSequence([master, iteration, purpose]).generate_state(1)[0])

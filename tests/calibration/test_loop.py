@@ -13,8 +13,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
 from susp_bo.calibration.loop import CalibrationSettings, IterationReport, calibrate
+from susp_bo.calibration.result import CalibrationResult
 from susp_bo.calibration.test_functions import TARGETS, marginal_total_variation
 
 FAST = CalibrationSettings(mcmc_chains=32, mcmc_warmup=500, mcmc_samples=800)
@@ -51,19 +53,39 @@ def _small(seed: int = 0, **kw: object) -> CalibrationSettings:
     )
 
 
-def test_mcmc_seed_redraws_the_posterior_without_new_evaluations() -> None:
+@pytest.fixture(scope="module")
+def small_banana() -> CalibrationResult:
+    """One small run on the 2-D banana (``_small()``) made under torch's stock float32
+    default dtype, shared by the tests that compare a second run (made under the float64
+    default every test here runs with) against it."""
+    previous = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float32)
+    try:
+        target = TARGETS["banana_2d"]()
+        return calibrate(target, target.bounds, target.names, _small(), progress=False)
+    finally:
+        torch.set_default_dtype(previous)
+
+
+def test_mcmc_seed_redraws_the_posterior_without_new_evaluations(
+    small_banana: CalibrationResult,
+) -> None:
     target = TARGETS["banana_2d"]()
-    a = calibrate(target, target.bounds, target.names, _small(mcmc_seed=1), progress=False)
     b = calibrate(target, target.bounds, target.names, _small(mcmc_seed=2), progress=False)
-    np.testing.assert_array_equal(a.X, b.X)
-    np.testing.assert_array_equal(a.y, b.y)
-    assert not np.array_equal(a.draws, b.draws)
+    np.testing.assert_array_equal(small_banana.X, b.X)
+    np.testing.assert_array_equal(small_banana.y, b.y)
+    assert not np.array_equal(small_banana.draws, b.draws)
 
 
-def test_deterministic_given_seed_and_evaluations() -> None:
+def test_deterministic_given_seed_and_evaluations(small_banana: CalibrationResult) -> None:
+    """The same seed gives the same result bit for bit, whatever torch default dtype the
+    caller set (``small_banana`` ran under float32, this run under float64), and the
+    caller's default dtype and thread count are left as they were."""
     target = TARGETS["banana_2d"]()
-    a = calibrate(target, target.bounds, target.names, _small(), progress=False)
+    a = small_banana
+    torch.set_num_threads(1)
     b = calibrate(target, target.bounds, target.names, _small(), progress=False)
+    assert torch.get_default_dtype() == torch.float64 and torch.get_num_threads() == 1
     np.testing.assert_array_equal(a.X, b.X)
     np.testing.assert_array_equal(a.draws, b.draws)
     assert a.to_dict() == b.to_dict()
@@ -72,23 +94,26 @@ def test_deterministic_given_seed_and_evaluations() -> None:
 
 
 def test_optimistic_refinement_is_deterministic_and_accurate() -> None:
-    """``refine_optimism`` through the whole loop: reproducible, and as accurate as the
-    default on the 2-D banana at 60 evaluations (MMTV <= 0.1, the bar of the default)."""
+    """``refine_optimism`` through the whole loop: reproducible (two small runs, bit for bit),
+    and as accurate as the default on the 2-D banana at 60 evaluations (MMTV <= 0.1, the bar
+    of the default)."""
     target = TARGETS["banana_2d"]()
-    settings = replace(FAST, max_evaluations=60, batch_size=4, refine_optimism=2.0)
-    a = calibrate(target, target.bounds, target.names, settings, progress=False)
-    b = calibrate(target, target.bounds, target.names, settings, progress=False)
+    small = _small(refine_optimism=2.0)
+    a = calibrate(target, target.bounds, target.names, small, progress=False)
+    b = calibrate(target, target.bounds, target.names, small, progress=False)
     np.testing.assert_array_equal(a.X, b.X)
     np.testing.assert_array_equal(a.draws, b.draws)
     assert any(item.phase == "refine" for item in a.history)
-    assert marginal_total_variation(target, a.samples).mean() <= 0.1
+    settings = replace(FAST, max_evaluations=60, batch_size=4, refine_optimism=2.0)
+    full = calibrate(target, target.bounds, target.names, settings, progress=False)
+    assert any(item.phase == "refine" for item in full.history)
+    assert marginal_total_variation(target, full.samples).mean() <= 0.1
 
 
-def test_pyro_backend_gives_the_same_posterior() -> None:
+def test_pyro_backend_gives_the_same_posterior(small_banana: CalibrationResult) -> None:
     target = TARGETS["banana_2d"]()
-    a = calibrate(target, target.bounds, target.names, _small(), progress=False)
     b = calibrate(target, target.bounds, target.names, _small(mcmc_backend="pyro"), progress=False)
-    np.testing.assert_array_equal(a.draws, b.draws)
+    np.testing.assert_array_equal(small_banana.draws, b.draws)
 
 
 def test_failed_evaluations_are_kept_as_nan_and_avoided() -> None:

@@ -4,31 +4,16 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
-import tomli_w
 
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
-from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.spec import load_rig_spec
 
 FAST_TRUTH = {"secondary_vertical_damping": 30.0e3, "yaw_damper_damping": 3.5e6}
 FAST_PARAMETERS = ("secondary_vertical_damping", "yaw_damper_damping")
-
-
-@pytest.fixture(scope="session")
-def fast_rig(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The reference rig with 8 s records after 1 s warm-up (4 s Welch segments)."""
-    document = tomllib.loads(rig_path("hst_trailer").read_text())
-    document["rig"]["name"] = "hst_trailer_fast"
-    document["simulation"].update(duration_s=8.0, warm_up_s=1.0)
-    document["spectrum"].update(segment_s=4.0, f_min_hz=0.5, n_frequencies=32)
-    path = tmp_path_factory.mktemp("rigs") / "hst_trailer_fast.toml"
-    path.write_text(tomli_w.dumps(document))
-    return path
 
 
 @pytest.fixture(scope="session")

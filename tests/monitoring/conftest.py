@@ -3,34 +3,22 @@
 from __future__ import annotations
 
 import datetime as dt
-import tomllib
 from pathlib import Path
 
 import pytest
 import tomli_w
 
 from susp_bo.monitoring.scenario import write_campaign
-from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.spec import load_rig_spec
 
 PARAMETERS = ["secondary_vertical_damping", "yaw_damper_damping"]
 TRUTH = {"secondary_vertical_damping": 30.0e3, "yaw_damper_damping": 3.5e6}
 
 
-def fast_rig_document() -> dict:
-    """The reference rig with 8 s records after 1 s warm-up (4 s Welch segments)."""
-    document = tomllib.loads(rig_path("hst_trailer").read_text())
-    document["rig"]["name"] = "hst_trailer_fast"
-    document["simulation"].update(duration_s=8.0, warm_up_s=1.0)
-    document["spectrum"].update(segment_s=4.0, f_min_hz=0.5, n_frequencies=32)
-    return document
-
-
 @pytest.fixture(scope="session")
-def monitor_rig(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("monitor_rig") / "hst_trailer_fast.toml"
-    path.write_text(tomli_w.dumps(fast_rig_document()))
-    return path
+def monitor_rig(fast_rig: Path) -> Path:
+    """The suite's fast rig (tests/conftest.py): 8 s records, a 5 ms step."""
+    return fast_rig
 
 
 def add_campaign(folder: Path, rig: Path, vehicle: str, date: str, seed: int) -> Path:
