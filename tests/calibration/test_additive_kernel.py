@@ -71,6 +71,7 @@ def _posterior_error(surrogate, u_test: np.ndarray, y_test: np.ndarray) -> float
     return 0.5 * float(hi - lo)
 
 
+@pytest.mark.slow
 def test_additive_kernel_learns_the_chained_banana_and_auto_picks_it(chain_data) -> None:
     x, y, u_test, y_test = chain_data
     matern = fit_surrogate(x, y, SurrogateSettings(kernel="matern"), seed=0)

@@ -22,6 +22,7 @@ from susp_bo.calibration.test_functions import TARGETS, marginal_total_variation
 FAST = CalibrationSettings(mcmc_chains=32, mcmc_warmup=500, mcmc_samples=800)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "budget", "batch"),
     [("banana_2d", 60, 4), ("correlated_gaussian_7d", 200, 8), ("weakly_identified_7d", 200, 8)],
@@ -93,6 +94,7 @@ def test_deterministic_given_seed_and_evaluations(small_banana: CalibrationResul
     assert not np.array_equal(a.X, c.X)
 
 
+@pytest.mark.slow
 def test_optimistic_refinement_is_deterministic_and_accurate() -> None:
     """``refine_optimism`` through the whole loop: reproducible (two small runs, bit for bit),
     and as accurate as the default on the 2-D banana at 60 evaluations (MMTV <= 0.1, the bar

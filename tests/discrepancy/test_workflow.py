@@ -36,6 +36,7 @@ def _normalised_error(report, values: dict[str, float]) -> float:
     return float(np.sqrt(np.mean(((w - truth) / span) ** 2)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("effect", "values", "speed", "noise"), CASES, ids=[c[0] for c in CASES])
 def test_a_hidden_effect_is_named_and_the_gap_shrinks(
     base_spec, linear_simulator, effect, values, speed, noise

@@ -13,10 +13,12 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tests.integration.conftest import FAST_PARAMETERS, FAST_TRUTH, calibrate_cli
 
 
+@pytest.mark.slow
 def test_paired_study_with_the_local_phase_is_trusted_and_holds_the_truth(
     fast_rig: Path, fast_data: Path, tmp_path: Path
 ) -> None:
