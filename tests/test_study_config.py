@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 import susp_bo.study_config as study_config
+import susp_bo.study_sections as study_sections
 from susp_bo.study_config import (
     BudgetConfig,
     ExecutorConfig,
@@ -70,8 +71,8 @@ def test_allowed_values_agree_with_the_calibration_package() -> None:
     from susp_bo.calibration.sampling import SAMPLERS
     from susp_bo.calibration.surrogate import KernelKind
 
-    assert study_config._SAMPLERS == SAMPLERS
-    assert typing.get_args(KernelKind) == study_config._KERNELS
+    assert study_sections._SAMPLERS == SAMPLERS
+    assert typing.get_args(KernelKind) == study_sections._KERNELS
 
 
 def test_readme_shows_the_docstring_example() -> None:
@@ -232,11 +233,3 @@ def test_direct_construction_is_validated_too() -> None:
     with pytest.raises(ValueError, match=r"mcmc\.chains: 0 is not allowed"):
         MCMCConfig(chains=0)
     assert StudyConfig(rig="r", data="d", out="o").data == Path("d")  # type: ignore[arg-type]
-
-
-def test_paired_config_refuses_a_correlation_length() -> None:
-    with pytest.raises(ValueError, match=r"correlation_length_hz.*unpaired"):
-        OutputErrorConfig(model="paired", correlation_length_hz=0.5)
-    with pytest.raises(ValueError, match=r"output_error\.model"):
-        OutputErrorConfig(model="mixture")
-    assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"

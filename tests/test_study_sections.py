@@ -1,0 +1,49 @@
+"""The study config's sections, validated on construction (``susp_bo.study_sections``)."""
+
+from __future__ import annotations
+
+import pytest
+
+from susp_bo.study_sections import (
+    SECTIONS,
+    BudgetConfig,
+    ExecutorConfig,
+    MCMCConfig,
+    OutputErrorConfig,
+    SearchConfig,
+    SeedsConfig,
+)
+
+
+def test_sections_by_table_name_in_file_order() -> None:
+    assert list(SECTIONS) == ["budget", "seeds", "executor", "mcmc", "output_error", "search"]
+    for name, cls in SECTIONS.items():
+        assert cls.section == name
+        cls()  # every default is valid
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: BudgetConfig(max_evaluations=True), r"budget\.max_evaluations: True"),
+        (lambda: BudgetConfig(initial_design=1), r"budget\.initial_design: 1 .* >= 2"),
+        (lambda: BudgetConfig(max_evaluations=20, initial_design=30), r">= budget\.initial"),
+        (lambda: BudgetConfig(allow_small="yes"), r"budget\.allow_small: 'yes'.*true or false"),
+        (lambda: SeedsConfig(mcmc=-1), r"seeds\.mcmc: -1 .* >= 0"),
+        (lambda: ExecutorConfig(workers=2, scheduler="tcp://h:8786"), r"not allowed together"),
+        (lambda: ExecutorConfig(scheduler=""), r"executor\.scheduler: ''"),
+        (lambda: MCMCConfig(chains=0), r"mcmc\.chains: 0 is not allowed"),
+        (lambda: MCMCConfig(sampler="nuts"), r'"random_walk", "hmc", "auto"'),
+        (lambda: SearchConfig(kernel="rbf"), r'"matern", "additive_pairs", "auto"'),
+        (lambda: OutputErrorConfig(model="mixture"), r"output_error\.model"),
+    ],
+)
+def test_a_bad_value_names_the_field_the_value_and_what_is_allowed(make, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_paired_config_refuses_a_correlation_length() -> None:
+    with pytest.raises(ValueError, match=r"correlation_length_hz.*unpaired"):
+        OutputErrorConfig(model="paired", correlation_length_hz=0.5)
+    assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"
