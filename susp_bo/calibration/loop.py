@@ -116,9 +116,12 @@ def _run_basin_phase(
         # the same data as (x_unit, values), as evaluated (no unit-cube round trip)
         return fit_in_box(data.x, data.y, bounds, settings, data.iteration + 1)
 
+    caller = (torch.get_num_threads(), torch.get_default_dtype())
+
     def run(u: np.ndarray) -> np.ndarray:
         w = from_unit(u, bounds)
-        values = evaluate_checked(evaluate, w)
+        with torch_state(*caller):  # evaluate sees the caller's torch state, as elsewhere
+            values = evaluate_checked(evaluate, w)
         finite = values[np.isfinite(values)]
         data.add("basin", w, values, float(finite.max()) if finite.size else math.nan)
         return values

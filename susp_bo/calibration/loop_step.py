@@ -61,10 +61,13 @@ STOCK_DEFAULT_DTYPE = torch.float32
 
 
 @contextmanager
-def torch_state(num_threads: int | None) -> Iterator[None]:
+def torch_state(
+    num_threads: int | None, default_dtype: torch.dtype = STOCK_DEFAULT_DTYPE
+) -> Iterator[None]:
     """The torch state of this tool's torch work (surrogate, acquisition, check, MCMC):
     ``num_threads`` intra-op threads (:func:`torch_threads`) and torch's stock default
-    dtype, both restored afterwards.
+    dtype, both restored afterwards. (With the caller's own values, the same context puts
+    the caller's state back around an ``evaluate`` called from inside that work.)
 
     The data are float64 throughout; the default dtype only reaches the numbers torch and
     its libraries make from Python floats (the GP's prior and constraint parameters,
@@ -74,7 +77,7 @@ def torch_state(num_threads: int | None) -> Iterator[None]:
     every recorded result of this tool was computed under.
     """
     previous = torch.get_default_dtype()
-    torch.set_default_dtype(STOCK_DEFAULT_DTYPE)
+    torch.set_default_dtype(default_dtype)
     try:
         with torch_threads(num_threads):
             yield

@@ -94,6 +94,25 @@ def test_deterministic_given_seed_and_evaluations(small_banana: CalibrationResul
     assert not np.array_equal(a.X, c.X)
 
 
+def test_evaluate_runs_under_the_callers_torch_state() -> None:
+    """calibrate's own torch work runs single-threaded under torch's stock default dtype;
+    every ``evaluate`` call, in every phase (the basin phase's too), sees the caller's."""
+    target = TARGETS["banana_2d"]()
+    seen: set[tuple[torch.dtype, int]] = set()
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        seen.add((torch.get_default_dtype(), torch.get_num_threads()))
+        return target(w)
+
+    torch.set_num_threads(2)
+    try:
+        result = calibrate(evaluate, target.bounds, target.names, _small(), progress=False)
+    finally:
+        torch.set_num_threads(1)
+    assert {item.phase for item in result.history} >= {"basin", "refine"}
+    assert seen == {(torch.float64, 2)}
+
+
 @pytest.mark.slow
 def test_optimistic_refinement_is_deterministic_and_accurate() -> None:
     """``refine_optimism`` through the whole loop: reproducible (two small runs, bit for bit),
