@@ -69,12 +69,13 @@ def torch_state(
     dtype, both restored afterwards. (With the caller's own values, the same context puts
     the caller's state back around an ``evaluate`` called from inside that work.)
 
-    The data are float64 throughout; the default dtype only reaches the numbers torch and
-    its libraries make from Python floats (the GP's prior and constraint parameters,
-    botorch's defaults). Pinning it makes a calibration the same whatever the caller set
-    (a notebook that called ``torch.set_default_dtype(torch.float64)``, as BoTorch's
-    tutorials do, got another result than ``susp-bo``); torch's stock float32 is the one
-    every recorded result of this tool was computed under.
+    The data are float64 throughout; the default dtype reaches what torch and its libraries
+    make without an explicit dtype, mainly from Python floats (the GP's prior and constraint
+    parameters, botorch's defaults: float32-rounded constants, ~1e-8 relative). Pinning
+    it makes a calibration the same whatever the caller set (a notebook that called
+    ``torch.set_default_dtype(torch.float64)``, as BoTorch's tutorials do, got another
+    result than ``susp-bo``); torch's stock float32 is the one every recorded result of
+    this tool was computed under.
     """
     previous = torch.get_default_dtype()
     torch.set_default_dtype(default_dtype)
