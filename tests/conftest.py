@@ -1,4 +1,5 @@
-"""Shared test fixtures: seeded random generators, float64 torch, a headless matplotlib.
+"""Shared test fixtures: seeded random generators, float64 torch, a headless matplotlib,
+the cheap rig of the end-to-end tests (``fast_rig``); files holding ``slow`` tests run first.
 
 Hypothesis profiles: ``ci`` (loaded when the ``CI`` environment variable is set, as
 ``.ci/run`` does) derandomises the examples (a fixed, reproducible set per test: CI cannot
