@@ -38,3 +38,21 @@ def test_python_dash_m_runs_the_same_cli() -> None:
     )
     assert done.returncode == 0
     assert __version__ in done.stdout
+
+
+def test_bad_calibrate_arguments_are_refused_without_loading_torch(tmp_path) -> None:
+    """Refusing a missing study file must not first import torch and the GP stack (≈ 4 s):
+    the exit-2 path looks up only the error types of modules already loaded."""
+    missing = tmp_path / "study.toml"
+    code = (
+        "import sys\n"
+        "from susp_bo.cli import main\n"
+        f"rc = main(['calibrate', {str(missing)!r}])\n"
+        "print(rc, 'torch' in sys.modules)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=120
+    )
+    assert done.stdout.split() == ["2", "False"], done.stderr[-2000:]
+    assert "RIG_OR_STUDY" in done.stderr and "does not exist" in done.stderr
+    assert "Traceback" not in done.stderr

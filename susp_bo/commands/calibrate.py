@@ -7,8 +7,6 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from susp_bo.calibration.study import run_study
-from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import checked_output_folder
 from susp_bo.study_config import (
@@ -143,6 +141,10 @@ def _is_study(path: Path) -> bool:
 def run_calibrate(args: argparse.Namespace) -> int:
     """Run (or resume) the study and print where its results are."""
     config = config_from_arguments(args)
+    # torch and the GP stack load only now: bad arguments are refused without them (~4 s)
+    from susp_bo.calibration.study import run_study
+    from susp_bo.calibration.study_inputs import StudyError
+
     try:
         payload, _ = run_study(config, resume=args.resume)
     except StudyError as error:
