@@ -1,4 +1,5 @@
-"""Fixtures for the monitoring tests: a short reference rig and small synthetic campaigns."""
+"""Fixtures for the monitoring tests: small synthetic campaigns on the suite's ``fast_rig``
+(tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -13,12 +14,6 @@ from susp_bo.rig.spec import load_rig_spec
 
 PARAMETERS = ["secondary_vertical_damping", "yaw_damper_damping"]
 TRUTH = {"secondary_vertical_damping": 30.0e3, "yaw_damper_damping": 3.5e6}
-
-
-@pytest.fixture(scope="session")
-def monitor_rig(fast_rig: Path) -> Path:
-    """The suite's fast rig (tests/conftest.py): 8 s records, a 5 ms step."""
-    return fast_rig
 
 
 def add_campaign(folder: Path, rig: Path, vehicle: str, date: str, seed: int) -> Path:

@@ -73,7 +73,7 @@ def _snapshot(out: Path, campaign: str) -> dict[str, Any]:
 
 @pytest.fixture(scope="module")
 def monitored(
-    monitor_rig: Path,
+    fast_rig: Path,
     tmp_path_factory: pytest.TempPathFactory,
     campaign_adder: Any,
     monitor_config_writer: Any,
@@ -81,9 +81,9 @@ def monitored(
     """Kill a monitoring run in its second campaign, resume it, then add a third campaign."""
     root = tmp_path_factory.mktemp("monitoring")
     folder, out = root / "campaigns", root / "out"
-    campaign_adder(folder, monitor_rig, "TRAIN-1", "2026-01-10", seed=1)
-    campaign_adder(folder, monitor_rig, "TRAIN-1", "2026-02-10", seed=2)
-    monitor_config_writer(folder, monitor_rig)
+    campaign_adder(folder, fast_rig, "TRAIN-1", "2026-01-10", seed=1)
+    campaign_adder(folder, fast_rig, "TRAIN-1", "2026-02-10", seed=2)
+    monitor_config_writer(folder, fast_rig)
     seen: dict[str, Any] = {"folder": folder, "out": out}
     process = subprocess.Popen(
         [
@@ -115,7 +115,7 @@ def monitored(
     seen["killed"] = {c: _snapshot(out, c) for c in (A, B)}
     seen["resumed_run"] = _monitor_cli(folder, out)
     seen["resumed"] = {c: _snapshot(out, c) for c in (A, B)}
-    campaign_adder(folder, monitor_rig, "TRAIN-1", "2026-03-10", seed=3)
+    campaign_adder(folder, fast_rig, "TRAIN-1", "2026-03-10", seed=3)
     seen["added_run"] = _monitor_cli(folder, out)
     seen["added"] = {c: _snapshot(out, c) for c in (A, B, C)}
     return seen
@@ -159,7 +159,7 @@ def test_a_new_campaign_adds_only_its_own_work(monitored: dict[str, Any]) -> Non
 
 
 def test_alarms_follow_trusted_verdicts_and_the_posterior_draws(
-    monitored: dict[str, Any], monitor_rig: Path, tmp_path: Path
+    monitored: dict[str, Any], fast_rig: Path, tmp_path: Path
 ) -> None:
     """Depends on the reliability contract: sets ``result.json["reliability"]`` only if absent."""
     out = tmp_path / "out"
@@ -175,7 +175,7 @@ def test_alarms_follow_trusted_verdicts_and_the_posterior_draws(
         c: json.loads((out / c / "result.json").read_text()).get("reliability") for c in (A, B, C)
     }
     # a band that excludes the truth (30 kN·s/m): the worn damper must be called
-    document = tomllib.loads(monitor_rig.read_text())
+    document = tomllib.loads(fast_rig.read_text())
     for entry in document["calibration"]["parameters"]:
         if entry["name"] == "secondary_vertical_damping":
             entry["acceptable"] = [35.0e3, 70.0e3]
