@@ -31,6 +31,7 @@ for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
+from operator import itemgetter  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pybullet  # noqa: E402
@@ -66,20 +67,25 @@ def profile_steps(spec, track, steps: int) -> dict[str, float]:
         x_all[:, c::3] = getattr(excitation, name).T
     client, body, joints = world.client._client, world.body_id, world.joints
     stroke = np.zeros(forces.n_strokes)
+    position_of, velocity_of, n_joints = itemgetter(0), itemgetter(1), len(joints)
     totals = dict.fromkeys(("read", "forces", "write", "step"), 0.0)
     clock = time.perf_counter
     n = min(steps, excitation.time_s.size - 1)
     for j in range(n):
         t0 = clock()
         states = pybullet.getJointStates(body, joints, physicsClientId=client)
-        q = np.array([s[0] for s in states])
-        qd = np.array([s[1] for s in states])
+        q = np.fromiter(map(position_of, states), np.float64, n_joints)  # as in integrate
+        qd = np.fromiter(map(velocity_of, states), np.float64, n_joints)
         t1 = clock()
         generalised, rate = forces(q, qd, x_all[j], x_all[j], sim.speed_m_s, stroke)
         stroke += sim.time_step_s * rate
         t2 = clock()
         pybullet.setJointMotorControlArray(
-            body, joints, pybullet.TORQUE_CONTROL, forces=generalised, physicsClientId=client
+            body,
+            joints,
+            pybullet.TORQUE_CONTROL,
+            forces=generalised.tolist(),
+            physicsClientId=client,
         )
         t3 = clock()
         pybullet.stepSimulation(physicsClientId=client)

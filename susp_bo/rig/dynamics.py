@@ -13,7 +13,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from susp_bo.rig.assembly import Assembly
-from susp_bo.rig.elements import dead_band_force
 
 FloatArray = NDArray[np.float64]
 
@@ -78,7 +77,6 @@ class ForceModel:
         self.n_series = series.group.size
         self.kinematics = np.ascontiguousarray(g_nl)  # (m_nl x width)
         self.transpose = np.ascontiguousarray(-g_nl[:, :n].T)  # (n x m_nl)
-        self.dead_params = (dead.stiffness, dead.gap, dead.smoothing)
         self.k_series = series.stiffness
         # one bilinear evaluation for dampers (v -> f / c) and series strokes (f / c -> v):
         # out = clip(a, ±knee) + slope · (a - clip), then scaled
@@ -90,6 +88,14 @@ class ForceModel:
         self.scale_out = np.concatenate([dampers.damping[bilinear], np.ones(self.n_series)])
         self.argument = np.zeros(self.n_bilinear + self.n_series)
         self.forces = np.zeros(g_nl.shape[0])
+        # per-step work buffers and constants (the step loop's arithmetic, op for op, with
+        # fewer temporaries: np.clip(a, -k, k) is minimum(maximum(a, -k), k) bit for bit)
+        self._negative_knee = -self.knee
+        self._scaled = np.zeros_like(self.argument)
+        self._clipped = np.zeros_like(self.argument)
+        self._bilinear_kinematics = self.kinematics[: self.n_bilinear]
+        self._dead_stiffness_smoothing = dead.stiffness * dead.smoothing
+        self._dead_gap, self._dead_smoothing = dead.gap, dead.smoothing
 
     def design_forces(self, offsets: FloatArray, rates: FloatArray) -> FloatArray:
         """Generalised forces of the linear elements on design offsets, (T x n).
@@ -138,7 +144,7 @@ class ForceModel:
         z[n:width] = x
         z[width : width + n] = qdot
         z[width + n : 2 * width] = xdot
-        z[2 * width :] = z[width : 2 * width] / speed_m_s
+        np.divide(z[width : 2 * width], speed_m_s, out=z[2 * width :])
         generalised = self.linear @ z
         nb, nd = self.n_bilinear, self.n_dead
         if offset is None:
@@ -148,16 +154,25 @@ class ForceModel:
         f = self.forces
         argument = self.argument
         if offset_rate is None:
-            argument[:nb] = self.kinematics[:nb] @ z[width : 2 * width]
+            argument[:nb] = self._bilinear_kinematics @ z[width : 2 * width]
         else:
-            argument[:nb] = self.kinematics[:nb] @ (z[width : 2 * width] + offset_rate)
+            argument[:nb] = self._bilinear_kinematics @ (z[width : 2 * width] + offset_rate)
         if nd:
-            f[nb : nb + nd] = dead_band_force(position[nb : nb + nd], *self.dead_params)
-        series_force = self.k_series * (position[nb + nd :] - stroke)
-        f[nb + nd :] = series_force
+            # elements.dead_band_force, op for op: k s (softplus((u - g)/s) - softplus((-u - g)/s))
+            u, gap, smoothing = position[nb : nb + nd], self._dead_gap, self._dead_smoothing
+            np.multiply(
+                self._dead_stiffness_smoothing,
+                np.logaddexp(0.0, (u - gap) / smoothing)
+                - np.logaddexp(0.0, (-u - gap) / smoothing),
+                out=f[nb : nb + nd],
+            )
+        series_force = f[nb + nd :]
+        np.multiply(self.k_series, position[nb + nd :] - stroke, out=series_force)
         argument[nb:] = series_force
-        scaled = argument * self.scale_in
-        clipped = np.clip(scaled, -self.knee, self.knee)
+        scaled = np.multiply(argument, self.scale_in, out=self._scaled)
+        clipped = np.minimum(
+            np.maximum(scaled, self._negative_knee, out=self._clipped), self.knee, out=self._clipped
+        )
         law = (clipped + self.slope * (scaled - clipped)) * self.scale_out
         f[:nb] = law[:nb]
         generalised += self.transpose @ f

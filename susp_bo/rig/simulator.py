@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -180,6 +181,7 @@ def integrate(
     get_states = pybullet.getJointStates
     set_torques = pybullet.setJointMotorControlArray
     step = pybullet.stepSimulation
+    position_of, velocity_of, n_joints = itemgetter(0), itemgetter(1), len(joints)
     torque = pybullet.TORQUE_CONTROL
     stroke = np.zeros(forces.n_strokes) if stroke0 is None else np.array(stroke0, dtype=float)
     if design is not None:
@@ -190,8 +192,8 @@ def integrate(
     qd_out = np.empty((records, forces.n))
     for j in range(n_steps + 1):
         states = get_states(body, joints, physicsClientId=client)
-        q = np.array([s[0] for s in states])
-        qd = np.array([s[1] for s in states])
+        q = np.fromiter(map(position_of, states), np.float64, n_joints)
+        qd = np.fromiter(map(velocity_of, states), np.float64, n_joints)
         if j % record_every == 0:
             k = j // record_every
             q_out[k], qd_out[k] = q, qd
@@ -212,7 +214,7 @@ def integrate(
             )
             generalised += loads[j]
         stroke += dt * stroke_rate
-        set_torques(body, joints, torque, forces=generalised, physicsClientId=client)
+        set_torques(body, joints, torque, forces=generalised.tolist(), physicsClientId=client)
         step(physicsClientId=client)
     return q_out, qd_out
 

@@ -56,3 +56,51 @@ def test_nonlinear_force_model_equals_the_element_laws(reference_spec: RigSpec, 
     expected[assembly.contact.yaw_dof] += moment
     np.testing.assert_allclose(generalised, expected, rtol=1e-9, atol=1e-6)
     np.testing.assert_allclose(rate, series.stroke_rate(force), rtol=1e-12)
+
+
+def _force_model_as_written(model: ForceModel, assembly, q, qd, x, xd, speed, stroke):
+    """The per-step arithmetic in its plain form (np.clip, elements.dead_band_force, fresh
+    arrays): what every recorded PyBullet figure was computed with before the step loop
+    lost its temporaries."""
+    from susp_bo.rig.elements import dead_band_force
+
+    n, width = model.n, model.n + model.n_in
+    z = np.concatenate([q, x, qd, xd, np.concatenate([qd, xd]) / speed])
+    generalised = model.linear @ z
+    nb, nd = model.n_bilinear, model.n_dead
+    position = model.kinematics @ z[:width]
+    f = np.zeros(model.kinematics.shape[0])
+    argument = np.zeros(nb + model.n_series)
+    argument[:nb] = model.kinematics[:nb] @ z[width : 2 * width]
+    dead = assembly.dead_bands
+    f[nb : nb + nd] = dead_band_force(
+        position[nb : nb + nd], dead.stiffness, dead.gap, dead.smoothing
+    )
+    series_force = model.k_series * (position[nb + nd :] - stroke)
+    f[nb + nd :] = series_force
+    argument[nb:] = series_force
+    scaled = argument * model.scale_in
+    clipped = np.clip(scaled, -model.knee, model.knee)
+    law = (clipped + model.slope * (scaled - clipped)) * model.scale_out
+    f[:nb] = law[:nb]
+    generalised += model.transpose @ f
+    assert n == assembly.n_dofs
+    return generalised, law[nb:]
+
+
+def test_the_step_loops_force_model_is_the_plain_arithmetic_bit_for_bit(
+    reference_spec: RigSpec, rng
+) -> None:
+    """Buffers and fused calls must not move a last bit (every recorded figure rests on it):
+    beyond the knees and gaps, at rest, and over repeated calls (buffers reused)."""
+    assembly = build_assembly(reference_spec)
+    model = ForceModel(assembly)
+    assert model.n_bilinear > 0 and model.n_dead > 0 and model.n_series > 0
+    for scale in (2e-2, 1e-4, 0.0, 5e-2):
+        state = _random_state(assembly, rng, scale)
+        got = model(*state[:4], 70.0, state[4])
+        got = (got[0].copy(), got[1].copy())
+        again = model(*state[:4], 70.0, state[4])
+        expected = _force_model_as_written(model, assembly, *state[:4], 70.0, state[4])
+        for a, b, c in zip(got, again, expected):
+            assert np.array_equal(a, c) and np.array_equal(b, c)
