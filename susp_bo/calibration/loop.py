@@ -233,6 +233,13 @@ def calibrate(
             budget,
             requirement.describe(),
         )
+    # a run refused by its budget gets the cheap sampler: "auto" does not add HMC to a
+    # result that cannot be trusted anyway (its poor_mixing evidence: the random walk's)
+    sampler = (
+        "random_walk"
+        if budget < requirement.minimum and settings.mcmc_sampler == "auto"
+        else settings.mcmc_sampler
+    )
     n0 = min(settings.initial_design_size or default_design_size(q), budget)
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
@@ -354,7 +361,7 @@ def calibrate(
             estimator=settings.estimator,
             backend=settings.mcmc_backend,
             progress=progress,
-            sampler=settings.mcmc_sampler,
+            sampler=sampler,
         )
         log_l = surrogate_log_likelihood(surrogate, settings.estimator)
         summary = summarize(draws_u.numpy(), box, list(names), log_l)

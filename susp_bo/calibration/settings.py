@@ -62,7 +62,9 @@ class CalibrationSettings:
             HMC's ≈ 1.01–1.02; HMC runs at most 128 of the chains for half the draws,
             its draws being far less correlated); "random_walk" or "hmc" force one
             (:mod:`susp_bo.calibration.sampling`). Where the random walk mixes, "auto"
-            gives its draws bit for bit.
+            gives its draws bit for bit. Under a budget below the minimum
+            (``allow_small_budget``) "auto" is the random walk alone: such a result is
+            not trusted whatever its draws, and HMC would cost more than the run.
         candidate_count: posterior candidates scored per refinement batch (and as many widened).
         acquisition_restarts: restarts of the qLogEI optimisation.
         acquisition_raw_samples: raw samples for the qLogEI restarts.

@@ -228,6 +228,12 @@ def test_design_only_on_a_7d_target_is_not_converged() -> None:
     assert {"budget_too_small", "not_converged", "surrogate_unchecked"} <= set(rel.codes)
     reason = next(r for r in rel.reasons if r["code"] == "not_converged")
     assert "no refinement" in reason["message"]
+    # below the minimum budget "auto" samples with the random walk alone (no HMC on a
+    # result refused anyway), and says so when those chains did not mix
+    assert result.mcmc["sampler"] == "random_walk" and "random walk R-hat" not in result.mcmc
+    assert "hmc R-hat" not in result.mcmc
+    if max(result.summary.r_hat) > 1.05:
+        assert "poor_mixing" in rel.codes
 
 
 def needle(w: np.ndarray) -> np.ndarray:
