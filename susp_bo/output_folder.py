@@ -1,8 +1,15 @@
-"""Output folders: refuse, before any work, a path that cannot become a folder."""
+"""Output folders: refuse, before any work, a path that cannot become a folder; the names
+of the files a study writes into its results folder (light to import: the commands check a
+results folder with them before loading torch)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+
+RESULT_NAME = "result.json"
+CONFIG_NAME = "study.toml"
+LOG_NAME = "study.log"
+SAMPLES_NAME = "posterior_samples.npy"
 
 
 def check_output_folder(path: str | Path, label: str = "--out") -> Path:

@@ -40,19 +40,33 @@ def test_python_dash_m_runs_the_same_cli() -> None:
     assert __version__ in done.stdout
 
 
-def test_bad_calibrate_arguments_are_refused_without_loading_torch(tmp_path) -> None:
-    """Refusing a missing study file must not first import torch and the GP stack (≈ 4 s):
-    the exit-2 path looks up only the error types of modules already loaded."""
-    missing = tmp_path / "study.toml"
+@pytest.mark.parametrize(
+    "command, expected",
+    [
+        (["calibrate", "{missing}/study.toml"], ["RIG_OR_STUDY", "does not exist"]),
+        (["diagnose", "{missing}", "--out", "{tmp}/d"], ["RESULT_DIR", "no finished calibration"]),
+        (["monitor", "{missing}", "--out", "{tmp}/m"], ["not a folder", "monitoring folder"]),
+        (["monitor", "{tmp}", "--out", "{tmp}/file/sub"], ["--out", "existing file"]),
+    ],
+)
+def test_bad_arguments_are_refused_without_loading_torch(
+    tmp_path, command: list[str], expected: list[str]
+) -> None:
+    """Refusing a missing study, results folder or monitoring folder, or an --out that cannot
+    be a folder, must not first import torch and the GP stack (≈ 4 s): the commands check
+    their paths before the heavy imports, and the exit-2 path looks up only the error types of
+    modules already loaded."""
+    (tmp_path / "file").write_text("not a folder")
+    argv = [a.format(missing=tmp_path / "missing", tmp=tmp_path) for a in command]
     code = (
         "import sys\n"
         "from susp_bo.cli import main\n"
-        f"rc = main(['calibrate', {str(missing)!r}])\n"
+        f"rc = main({argv!r})\n"
         "print(rc, 'torch' in sys.modules)\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=False, timeout=120
     )
     assert done.stdout.split() == ["2", "False"], done.stderr[-2000:]
-    assert "RIG_OR_STUDY" in done.stderr and "does not exist" in done.stderr
+    assert all(text in done.stderr for text in expected), done.stderr
     assert "Traceback" not in done.stderr

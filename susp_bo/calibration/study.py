@@ -66,14 +66,11 @@ from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect
+from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
 from susp_bo.rig.spec import RigSpec
 from susp_bo.store import EvaluationStore, StoreMismatchError
 from susp_bo.study_config import StudyConfig
 
-RESULT_NAME = "result.json"
-CONFIG_NAME = "study.toml"
-LOG_NAME = "study.log"
-SAMPLES_NAME = "posterior_samples.npy"
 MAX_SAVED_SAMPLES = 20_000
 
 

@@ -61,6 +61,7 @@ import numpy as np
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import output_folder
 from susp_bo.json_files import json_ready, write_json
+from susp_bo.output_folder import CONFIG_NAME, RESULT_NAME
 
 
 def _fit_from_result(study: Any, payload: dict[str, Any]) -> Any:
@@ -246,8 +247,15 @@ def _not_trusted_document(
 
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run the workflow on ``args.result_dir`` and write ``discrepancy.json`` and figures."""
+    result_dir = Path(args.result_dir)
+    result_file = result_dir / RESULT_NAME
+    config_file = result_dir / CONFIG_NAME
+    if not result_file.is_file() or not config_file.is_file():  # before torch is loaded
+        raise UsageError(
+            f"RESULT_DIR: {result_dir} holds no finished calibration (need {RESULT_NAME} and "
+            f"{CONFIG_NAME}, as written by susp-bo calibrate)"
+        )
     from susp_bo.calibration.likelihood import OutputError, estimate_output_error
-    from susp_bo.calibration.study import RESULT_NAME
     from susp_bo.calibration.study_inputs import StudyError
     from susp_bo.calibration.study_preparation import prepare_study
     from susp_bo.discrepancy.figures import write_figures
@@ -256,14 +264,6 @@ def run_diagnose(args: argparse.Namespace) -> int:
     from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
     from susp_bo.study_config import load_study_config
 
-    result_dir = Path(args.result_dir)
-    result_file = result_dir / RESULT_NAME
-    config_file = result_dir / "study.toml"
-    if not result_file.is_file() or not config_file.is_file():
-        raise UsageError(
-            f"RESULT_DIR: {result_dir} holds no finished calibration (need {RESULT_NAME} and "
-            "study.toml, as written by susp-bo calibrate)"
-        )
     kind = getattr(args, "simulator", None) or "pybullet"
     budget = getattr(args, "budget", None)
     force = bool(getattr(args, "force", False))

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from susp_bo.cli import UsageError
 from susp_bo.commands._arguments import integer, number
+from susp_bo.output_folder import check_output_folder
 
 
 def add_parser(sub: Any) -> None:
@@ -52,10 +54,17 @@ def add_parser(sub: Any) -> None:
 
 def run_monitor(args: argparse.Namespace) -> int:
     """Run (or continue) the monitoring and print the maintenance table."""
-    from susp_bo.monitoring.runner import MonitorError, monitor
-
     if not 0.0 < args.threshold < 1.0:
         raise UsageError(f"--threshold: got {args.threshold}; expected a probability in (0, 1)")
+    folder = Path(args.folder)
+    if not folder.is_dir():  # before torch is loaded (discover_campaigns says the same)
+        raise UsageError(f"{folder}: not a folder (expected a monitoring folder of campaigns)")
+    try:
+        check_output_folder(args.out)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    from susp_bo.monitoring.runner import MonitorError, monitor
+
     parameters = None
     if args.parameters is not None:
         parameters = [p.strip() for p in args.parameters.split(",") if p.strip()]
