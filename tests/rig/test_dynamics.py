@@ -64,7 +64,7 @@ def _force_model_as_written(model: ForceModel, assembly, q, qd, x, xd, speed, st
     lost its temporaries."""
     from susp_bo.rig.elements import dead_band_force
 
-    n, width = model.n, model.n + model.n_in
+    width = model.n + model.n_in
     z = np.concatenate([q, x, qd, xd, np.concatenate([qd, xd]) / speed])
     generalised = model.linear @ z
     nb, nd = model.n_bilinear, model.n_dead
@@ -84,7 +84,6 @@ def _force_model_as_written(model: ForceModel, assembly, q, qd, x, xd, speed, st
     law = (clipped + model.slope * (scaled - clipped)) * model.scale_out
     f[:nb] = law[:nb]
     generalised += model.transpose @ f
-    assert n == assembly.n_dofs
     return generalised, law[nb:]
 
 
