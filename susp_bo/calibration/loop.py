@@ -222,6 +222,7 @@ def calibrate(
     requirement = budget_requirement(
         q, settings.initial_design_size, settings.batch_size, settings.check_points
     )
+    sampler = settings.mcmc_sampler
     if budget < requirement.minimum:
         if not settings.allow_small_budget:
             raise BudgetTooSmallError(
@@ -233,13 +234,10 @@ def calibrate(
             budget,
             requirement.describe(),
         )
-    # a run refused by its budget gets the cheap sampler: "auto" does not add HMC to a
-    # result that cannot be trusted anyway (its poor_mixing evidence: the random walk's)
-    sampler = (
-        "random_walk"
-        if budget < requirement.minimum and settings.mcmc_sampler == "auto"
-        else settings.mcmc_sampler
-    )
+        # no HMC on a result that cannot be trusted anyway (its poor_mixing evidence, if
+        # any: the random walk's)
+        if sampler == "auto":
+            sampler = "random_walk"
     n0 = min(settings.initial_design_size or default_design_size(q), budget)
     n_check = min(settings.check_points, budget - n0)
     main_budget = budget - n_check
