@@ -90,6 +90,10 @@ class LinearisedRig(CurvedLineMethods):
         self._input_cache: dict[
             tuple, tuple[object, tuple[ComplexArray, ComplexArray], tuple[int, int]]
         ] = {}
+        # the last state space built and its modal basis: the ν runs of one parameter
+        # point (one response each) share them, so they are built once, not ν times
+        self._last_system: tuple[tuple, StateSpace] | None = None
+        self._last_basis: tuple[StateSpace, _ModalBasis] | None = None
 
     def _system(
         self,
@@ -98,7 +102,25 @@ class LinearisedRig(CurvedLineMethods):
         dead_band_slopes: FloatArray | None = None,
     ) -> StateSpace:
         spec = self.spec.with_parameters(parameters)
-        return state_space(build_assembly(spec), speed_m_s, dead_band_slopes)
+        slopes = None if dead_band_slopes is None else np.asarray(dead_band_slopes, np.float64)
+        # exact key (float.hex tells -0.0 from 0.0): a hit returns what would be rebuilt
+        key = (
+            tuple((name, float(value).hex()) for name, value in spec.parameters.items()),
+            float(speed_m_s).hex(),
+            None if slopes is None else (slopes.shape, slopes.tobytes()),
+        )
+        if self._last_system is not None and self._last_system[0] == key:
+            return self._last_system[1]
+        system = state_space(build_assembly(spec), speed_m_s, dead_band_slopes)
+        self._last_system = (key, system)
+        return system
+
+    def _modal_basis(self, system: StateSpace) -> _ModalBasis:
+        """The eigen-decomposition of ``system.a`` (:func:`_modal_basis`), kept for the
+        last system."""
+        if self._last_basis is None or self._last_basis[0] is not system:
+            self._last_basis = (system, _modal_basis(system))
+        return self._last_basis[1]
 
     def eigenvalues(
         self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
@@ -372,7 +394,9 @@ class LinearisedRig(CurvedLineMethods):
                 assembly.sensor_displacement @ np.eye(n, system.a.shape[0]),
             ]
         )
-        outputs = _solve_outputs(system, rows, spectrum, rate_spectrum, omega)
+        outputs = _solve_outputs(
+            system, self._modal_basis(system), rows, spectrum, rate_spectrum, omega
+        )
         signals_t = scipy.fft.irfft(outputs, n=n_t, axis=1)
         start = round(warm / (dt * per_sample)) * per_sample
         n_channels = len(assembly.channels)
@@ -392,8 +416,27 @@ class LinearisedRig(CurvedLineMethods):
         )
 
 
+@dataclass(frozen=True)
+class _ModalBasis:
+    """``A = V diag(λ) V⁻¹``: eigenvalues (size,), eigenvectors V and V⁻¹ (size x size),
+    and whether V is well-conditioned enough to solve in modal coordinates."""
+
+    values: ComplexArray
+    vectors: ComplexArray
+    inverse: ComplexArray
+    well_conditioned: bool
+
+
+def _modal_basis(system: StateSpace) -> _ModalBasis:
+    values, vectors = np.linalg.eig(system.a)
+    inverse = np.linalg.inv(vectors)
+    well = bool(np.max(np.abs(inverse)) * np.max(np.abs(vectors)) < 1e8)
+    return _ModalBasis(values, vectors, inverse, well)
+
+
 def _solve_outputs(
     system: StateSpace,
+    basis: _ModalBasis,
     rows: FloatArray,
     spectrum: ComplexArray,
     rate_spectrum: ComplexArray,
@@ -401,12 +444,11 @@ def _solve_outputs(
 ) -> ComplexArray:
     """Output spectra ``rows · z(ω)`` (m x F) of ``(iω - A) z = B X + B_d Ẋ``.
 
-    Diagonalises A once (fast); falls back to one solve per frequency when the
-    eigenvectors are ill-conditioned.
+    Solves in the modal coordinates of ``basis`` (fast); falls back to one solve per
+    frequency when the eigenvectors are ill-conditioned.
     """
-    values, vectors = np.linalg.eig(system.a)
-    inverse = np.linalg.inv(vectors)
-    if np.max(np.abs(inverse)) * np.max(np.abs(vectors)) < 1e8:  # well-conditioned basis
+    values, vectors, inverse = basis.values, basis.vectors, basis.inverse
+    if basis.well_conditioned:
         modal = (inverse @ system.b) @ spectrum + (inverse @ system.b_rate) @ rate_spectrum
         modal /= 1j * omega[None, :] - values[:, None]
         return (rows @ vectors) @ modal

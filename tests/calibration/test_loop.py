@@ -1,8 +1,9 @@
 """calibrate(): posterior accuracy against exact posteriors, determinism, failures, callbacks.
 
-The MMTV tests run below the issue's budget of 50 (q + 2) evaluations (60 of 200 for the
-2-D banana, 200 of 450 in 7-D) to stay within the suite's time budget; the full-budget
-runs and the comparison with PyVBMC are in benchmarks/posterior_accuracy.py.
+The MMTV tests hold the issue's bar (MMTV <= 0.05) well below its budget of 50 (q + 2)
+evaluations (60 of 200 for the 2-D banana, 120 of 450 in 7-D) to stay within the suite's
+time budget; the full-budget runs and the comparison with PyVBMC are in
+benchmarks/posterior_accuracy.py.
 """
 
 from __future__ import annotations
@@ -25,16 +26,16 @@ FAST = CalibrationSettings(mcmc_chains=32, mcmc_warmup=500, mcmc_samples=800)
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "budget", "batch"),
-    [("banana_2d", 60, 4), ("correlated_gaussian_7d", 200, 8), ("weakly_identified_7d", 200, 8)],
+    [("banana_2d", 60, 4), ("correlated_gaussian_7d", 120, 8), ("weakly_identified_7d", 120, 8)],
 )
-def test_posterior_accuracy_mmtv_below_0_1(name: str, budget: int, batch: int) -> None:
+def test_posterior_accuracy_mmtv_below_0_05(name: str, budget: int, batch: int) -> None:
     target = TARGETS[name]()
     assert budget <= 50 * (target.dim + 2)
     settings = replace(FAST, max_evaluations=budget, batch_size=batch)
     result = calibrate(target, target.bounds, target.names, settings, progress=False)
     assert result.n_evaluations <= budget
     mmtv = marginal_total_variation(target, result.samples).mean()
-    assert mmtv <= 0.1, mmtv
+    assert mmtv <= 0.05, mmtv  # measured: 0.020 (banana), 0.028 and 0.033 (7-D)
     assert np.all(result.summary.r_hat < 1.1)
 
 

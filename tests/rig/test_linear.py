@@ -10,8 +10,9 @@ import pytest
 from scipy.signal import argrelmin
 
 from susp_bo.rig.linear import LinearisedRig
+from susp_bo.rig.simulator import synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
-from susp_bo.rig.track import TrackPSD
+from susp_bo.rig.track import TrackGeometry, TrackPSD
 
 # Published ranges of uncoupled modes for high-speed passenger cars (shared/DESIGN.md:
 # carbody bounce 0.6-1.1, pitch 0.9-1.3, lateral ≈0.6; bogie bounce ≈7, pitch ≈12 Hz).
@@ -105,3 +106,28 @@ def test_fast_path_spectra_are_finite_and_quick(
     mid = reference_spec.channels.index("carbody_mid_vertical")
     ratio = np.median(rougher.log_amplitude[mid] - spectra.log_amplitude[mid])
     assert ratio == pytest.approx(0.5 * math.log(1.08e-6 / 4.032e-7), abs=0.1)
+
+
+def test_a_reused_state_space_gives_the_fresh_rigs_response_bit_for_bit(
+    short_spec: RigSpec, short_track: TrackGeometry
+) -> None:
+    """The rig keeps its last state space and modal basis (the ν runs of one parameter
+    point share them): interleaved parameter points and tracks give exactly what a fresh
+    rig computes, and a changed parameter, speed or dead-band slope is never a hit."""
+    other_track = synthetic_track(short_spec, seed=12)
+    speed = short_spec.simulation.speed_m_s
+    points = [None, {"secondary_vertical_damping": 25.0e3}, None, {"yaw_damper_damping": 3.0e6}]
+    shared = LinearisedRig(short_spec)
+    for parameters in points:
+        for track in (short_track, other_track):
+            reused = shared.response(track, speed, parameters).accelerations_m_s2
+            fresh = LinearisedRig(short_spec).response(track, speed, parameters)
+            np.testing.assert_array_equal(reused, fresh.accelerations_m_s2)
+    system = shared._system(None, speed)
+    assert shared._system({}, speed) is system  # the same point, said another way
+    assert shared._system({"secondary_vertical_damping": 25.0e3}, speed) is not system
+    assert shared._system(None, speed + 1.0).a.tolist() != system.a.tolist()
+    slopes = np.zeros(len(system.assembly.dead_bands.group.names))
+    with_slopes = shared._system(None, speed, slopes)
+    assert shared._system(None, speed, slopes) is with_slopes
+    assert shared._system(None, speed, slopes + 1.0e5) is not with_slopes
