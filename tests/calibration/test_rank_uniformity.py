@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import special, stats
 
-from susp_bo.calibration.rank_uniformity import pooled_rank_ks
+from susp_bo.calibration.rank_uniformity import _textbook_alarms, pooled_rank_ks
 
 E, Q = 40, 7
 
@@ -69,3 +69,24 @@ def test_bad_input_is_refused_by_name() -> None:
         pooled_rank_ks(u, _equicorrelated(-0.9))
     with pytest.raises(ValueError, match="n_simulations"):
         pooled_rank_ks(u, _equicorrelated(0.0), n_simulations=10)
+
+
+@pytest.mark.parametrize("n", [1, 14, 280, 1000])
+@pytest.mark.parametrize("alpha", [0.01, 0.05, 0.5])
+def test_the_false_alarm_count_is_the_count_of_textbook_p_values_below_alpha(
+    n: int, alpha: float
+) -> None:
+    """The count from the critical value equals evaluating every p-value, also for
+    statistics within rounding of the critical value."""
+    critical = stats.kstwo.isf(alpha, n)
+    rng = np.random.default_rng(n)
+    d = np.concatenate(
+        [
+            rng.uniform(0.0, 1.0, 500),
+            critical + rng.uniform(-1e-5, 1e-5, 500),
+            critical + np.array([-1e-9, 0.0, 1e-9]),
+        ]
+    ).clip(0.0, 1.0)
+    brute = int(np.count_nonzero(stats.kstwo.sf(d, n) < alpha))
+    assert 0 < brute < d.size
+    assert _textbook_alarms(d, n, alpha) == brute
