@@ -117,8 +117,8 @@ def test_evaluate_runs_under_the_callers_torch_state() -> None:
 @pytest.mark.slow
 def test_optimistic_refinement_is_deterministic_and_accurate() -> None:
     """``refine_optimism`` through the whole loop: reproducible (two small runs, bit for bit),
-    and as accurate as the default on the 2-D banana at 60 evaluations (MMTV <= 0.1, the bar
-    of the default)."""
+    and as accurate as the default on the 2-D banana at 60 evaluations (MMTV <= 0.05, the
+    default's bar; measured 0.021)."""
     target = TARGETS["banana_2d"]()
     small = _small(refine_optimism=2.0)
     a = calibrate(target, target.bounds, target.names, small, progress=False)
@@ -129,7 +129,7 @@ def test_optimistic_refinement_is_deterministic_and_accurate() -> None:
     settings = replace(FAST, max_evaluations=60, batch_size=4, refine_optimism=2.0)
     full = calibrate(target, target.bounds, target.names, settings, progress=False)
     assert any(item.phase == "refine" for item in full.history)
-    assert marginal_total_variation(target, full.samples).mean() <= 0.1
+    assert marginal_total_variation(target, full.samples).mean() <= 0.05
 
 
 def test_pyro_backend_gives_the_same_posterior(small_banana: CalibrationResult) -> None:
