@@ -109,8 +109,9 @@ class LinearisedRig(CurvedLineMethods):
             float(speed_m_s).hex(),
             None if slopes is None else (slopes.shape, slopes.tobytes()),
         )
-        if self._last_system is not None and self._last_system[0] == key:
-            return self._last_system[1]
+        last = self._last_system  # read once: another thread may replace it
+        if last is not None and last[0] == key:
+            return last[1]
         system = state_space(build_assembly(spec), speed_m_s, dead_band_slopes)
         self._last_system = (key, system)
         return system
@@ -118,9 +119,11 @@ class LinearisedRig(CurvedLineMethods):
     def _modal_basis(self, system: StateSpace) -> _ModalBasis:
         """The eigen-decomposition of ``system.a`` (:func:`_modal_basis`), kept for the
         last system."""
-        if self._last_basis is None or self._last_basis[0] is not system:
-            self._last_basis = (system, _modal_basis(system))
-        return self._last_basis[1]
+        last = self._last_basis  # read once: another thread may replace it
+        if last is None or last[0] is not system:
+            last = (system, _modal_basis(system))
+            self._last_basis = last
+        return last[1]
 
     def eigenvalues(
         self, parameters: Mapping[str, float] | None = None, speed_m_s: float | None = None
@@ -428,6 +431,7 @@ class _ModalBasis:
 
 
 def _modal_basis(system: StateSpace) -> _ModalBasis:
+    """Eigen-decomposition of the state matrix, with its conditioning verdict."""
     values, vectors = np.linalg.eig(system.a)
     inverse = np.linalg.inv(vectors)
     well = bool(np.max(np.abs(inverse)) * np.max(np.abs(vectors)) < 1e8)
