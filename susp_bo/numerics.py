@@ -1,4 +1,4 @@
-"""The same floating-point result on any x86-64 machine: pinned CPU code paths.
+"""Pinned CPU code paths: the same floating-point result across x86-64 machines where it holds.
 
 NumPy, OpenBLAS (NumPy's and SciPy's BLAS/LAPACK), MKL (torch's BLAS/LAPACK), oneDNN
 and torch's own vectorised kernels each pick, at run time, the fastest code for the CPU
@@ -36,7 +36,12 @@ effect, and ``result.json["numerics"]`` records it with every result.
 
 What is not covered: other CPU families (ARM, POWER: nothing is pinned there), CPUs
 without AVX2, and the C library's scalar ``exp``/``log`` (the same within one Linux
-distribution release; may differ between distributions).
+distribution release; may differ between distributions). Measured: bit-identical
+results between two Intel Xeons of one model (session 10), but **not** between an Intel
+Xeon and an AMD EPYC (Zen 3, session 17: the demo's draws differ in their last bits, the
+verdict and printed figures agree to about the last digit; README "Set-up"); so
+``machine_independent`` means "every pin holds", not "identical on every CPU". The code
+path that still differs was not found.
 """
 
 from __future__ import annotations
