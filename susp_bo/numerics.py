@@ -41,7 +41,15 @@ results between two Intel Xeons of one model (session 10), but **not** between a
 Xeon and an AMD EPYC (Zen 3, session 17: the demo's draws differ in their last bits, the
 verdict and printed figures agree to about the last digit; README "Set-up"); so
 ``machine_independent`` means "every pin holds", not "identical on every CPU". The code
-path that still differs was not found.
+path that still differs was not found. Session 18 found no dispatch keyed on the CPU's
+vendor as far as it could look: under QEMU user-mode emulation with an Intel and an AMD
+CPUID, the demo's 120 design spectra (also equal to the native AMD run's) and its first
+batch of new points came out bit-identical. The emulation cannot follow the run further:
+its floating point is not the hardware's (torch's square root of the GP's first distance
+matrix differed from the native CPU's in 212 of 1 600 last bits). Left as suspects: a
+kernel keyed on AVX-512 that the pins do not reach (the Intel Xeon has AVX-512, the AMD
+EPYC not). What such a last-bit difference does to a result is measured by
+``benchmarks/last_bit_sensitivity.py`` (README "Set-up").
 """
 
 from __future__ import annotations
