@@ -20,9 +20,13 @@ machines — and reports how far each printed figure moves from the unperturbed 
     python benchmarks/last_bit_sensitivity.py --smoke --perturbations 2 --out OUT  # minutes
 
 ``--baseline DIR`` reuses an unperturbed demo folder (its ``result.json``) instead of
-running one. Writes ``OUT/summary.json`` and ``OUT/intervals.png`` (each run's 95 %
-intervals beside the baseline's, in physical units, truth marked), and each run's demo
-folder ``OUT/run_K``. Bad arguments exit 2 before anything runs.
+running one; a run whose folder already holds a ``result.json`` is not run again (a killed
+benchmark continues). ``--compare LABEL=RESULT_JSON`` (repeatable) adds the same demo's
+``result.json`` from another machine (e.g. ``benchmarks/reference/
+demo_amd_epyc_zen3_result.json``): its moves are reported beside the perturbations'.
+Writes ``OUT/summary.json``, ``OUT/intervals.png`` (each run's 95 % intervals in physical
+units, truth marked) and each run's demo folder ``OUT/run_K``. Bad arguments exit 2
+before anything runs.
 """
 
 from __future__ import annotations
@@ -115,7 +119,7 @@ def _plot(
         for row, label in enumerate(labels):
             run = runs[label]
             low, high = run["interval_low"][index], run["interval_high"][index]
-            colour = "black" if label == "baseline" else "tab:blue"
+            colour = {"baseline": "black"}.get(label, "tab:blue" if "ulp" in label else "grey")
             ax.plot([low, high], [row, row], color=colour, lw=3, solid_capstyle="butt")
             ax.plot(run["posterior_mean"][index], row, "|", color="white", ms=8)
         ax.axvline(truth[index], color="tab:red", lw=1, label="truth")
@@ -125,9 +129,11 @@ def _plot(
         ax.tick_params(axis="x", labelsize=7)
         ax.ticklabel_format(axis="x", useOffset=False, style="plain")
         if index == 0:
-            ax.legend(fontsize=7, loc="upper right")
+            ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.suptitle(
-        "95 % intervals: unperturbed demo (black) and log L moved by 1 ulp (blue)", fontsize=9
+        "95 % intervals: the demo here (black), with log L moved by 1 ulp (blue), "
+        "other machines (grey)",
+        fontsize=9,
     )
     fig.tight_layout()
     fig.savefig(out, dpi=120)
@@ -141,6 +147,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="demos run at once (>= 1)")
     parser.add_argument("--smoke", action="store_true", help="the demo's --smoke budgets")
     parser.add_argument("--baseline", type=Path, help="an unperturbed demo folder to reuse")
+    parser.add_argument(
+        "--compare",
+        action="append",
+        default=[],
+        metavar="LABEL=RESULT_JSON",
+        help="the same demo's result.json from another machine (repeatable)",
+    )
     parser.add_argument("--child-seed", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child_seed is not None:
@@ -151,11 +164,20 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--jobs {args.jobs}: must be >= 1")
     if args.baseline is not None and not (args.baseline / "result.json").is_file():
         parser.error(f"--baseline {args.baseline}: no result.json there (a demo output folder)")
+    compared: dict[str, Path] = {}
+    for item in args.compare:
+        label, _, path = item.partition("=")
+        if not label or not Path(path).is_file():
+            parser.error(f"--compare {item!r}: expected LABEL=RESULT_JSON with an existing file")
+        compared[label] = Path(path)
     args.out.mkdir(parents=True, exist_ok=True)
 
     seeds = ([] if args.baseline else [-1]) + list(range(args.perturbations))
     folders = {seed: args.out / ("baseline" if seed < 0 else f"run_{seed}") for seed in seeds}
-    pending, running = list(seeds), {}
+    pending = [seed for seed in seeds if not (folders[seed] / "result.json").is_file()]
+    for seed in sorted(set(seeds) - set(pending)):
+        print(f"last_bit_sensitivity: {folders[seed].name} done before, reused", file=sys.stderr)
+    running: dict[int, tuple[subprocess.Popen[bytes], Any]] = {}
     started = time.perf_counter()
     while pending or running:
         while pending and len(running) < args.jobs:
@@ -194,12 +216,19 @@ def main(argv: list[str] | None = None) -> int:
         result = json.loads((folders[seed] / "result.json").read_text())
         runs[f"ulp seed {seed}"] = figures(result) | {"draws_sha256": _draws_sha(folders[seed])}
     perturbed = [run for label, run in runs.items() if label != "baseline"]
+    others = {label: figures(json.loads(path.read_text())) for label, path in compared.items()}
     summary = {
         "command": " ".join(sys.argv),
         "baseline": str(base_folder),
         "parameters": base_result["parameters"],
         "largest_move_in_interval_widths": moves(runs["baseline"], perturbed),
+        "other_machines_move_in_interval_widths": {
+            label: moves(runs["baseline"], [run]) for label, run in others.items()
+        },
         "runs": runs,
+        "other_machines": {
+            label: run | {"result": str(compared[label])} for label, run in others.items()
+        },
     }
     (args.out / "summary.json").write_text(json.dumps(summary, indent=1))
     _plot(
@@ -207,19 +236,23 @@ def main(argv: list[str] | None = None) -> int:
         base_result["parameters"],
         base_result["units"],
         base_result["reference"],
-        runs,
+        runs | others,
     )
     print("parameter                      largest move / interval width: low  high  mean")
     largest = summary["largest_move_in_interval_widths"]
     for index, name in enumerate(base_result["parameters"]):
         row = "  ".join(f"{largest[f][index]:.3f}" for f in FIGURES)
         print(f"{name:<32}{row}")
-    for label, run in runs.items():
+    for label, largest_other in summary["other_machines_move_in_interval_widths"].items():
+        worst = max(max(values) for values in largest_other.values())
+        print(f"{label}: largest move of any figure {worst:.3f} interval widths")
+    for label, run in (runs | others).items():
+        draws = run.get("draws_sha256") or "-"
         print(
             f"{label:<12} inside {run['inside']}/{len(base_result['parameters'])}, "
             f"{run['verdict']}, best log L {run['best_log_likelihood']:.3f}, R-hat <= "
             f"{run['r_hat_max']:.3f}, ESS >= {run['ess_min']:.0f}, draws "
-            f"{(run['draws_sha256'] or '-')[:8]}"
+            f"{draws[:8]}"
         )
     print(f"last_bit_sensitivity: wrote {args.out / 'summary.json'} and intervals.png")
     return 0
