@@ -129,6 +129,11 @@ def _single_threaded_worker(parent_pid: int | None = None) -> None:
     and the worker exits when the study process dies, even by SIGKILL."""
     for name in _THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
+    if "numpy" in sys.modules:  # loaded before this ran (a program importing NumPy first:
+        # spawned workers import it again): its BLAS read the variables already
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=1, user_api="blas")
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
     _die_with_parent(os.getppid() if parent_pid is None else parent_pid)

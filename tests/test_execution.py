@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import importlib
 import os
+import subprocess
+import sys
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -189,3 +191,22 @@ def test_default_workers_is_the_cpu_affinity() -> None:
 
     expected = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
     assert default_workers() == (expected or os.cpu_count())
+
+
+def test_a_worker_of_a_program_that_loaded_numpy_first_still_runs_blas_on_one_thread() -> None:
+    """Spawned workers import the program's main module before the pool's initializer runs:
+    when that module imports NumPy, its BLAS has read the thread variables already; the
+    initializer limits it anyway (N workers on N cores, and the same bits as the CLI)."""
+    code = (
+        "import numpy, threadpoolctl\n"
+        "from susp_bo.execution import _single_threaded_worker\n"
+        "_single_threaded_worker()\n"
+        "print(max(i['num_threads'] for i in threadpoolctl.threadpool_info()"
+        " if i['user_api'] == 'blas'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.endswith("_NUM_THREADS")}
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == "1", done.stdout + done.stderr

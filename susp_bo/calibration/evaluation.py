@@ -82,7 +82,10 @@ def simulate_spectra(
     specific force is removed before the spectra, as from the measured runs.
 
     A top-level function so that worker processes (and Dask workers) import it
-    by name; each worker keeps its own rig (PyBullet client) between calls.
+    by name; each worker keeps its own rig (PyBullet client) between calls. The rig's
+    BLAS products run on one thread, so the spectra are the same bits in a pool worker,
+    in-process (``workers = 0``) and in a worker whose program loaded NumPy before the
+    pool could limit its threads (:func:`susp_bo.numerics.one_blas_thread`).
 
     Raises:
         SimulationFailed: the simulation diverged (recorded as a failed evaluation).

@@ -46,6 +46,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from scipy.optimize import minimize
 
+from susp_bo.numerics import one_blas_thread
+
 logger = logging.getLogger(__name__)
 
 _ROUND = 10  # decimals of proposed unit-cube coordinates
@@ -157,7 +159,8 @@ class _Model:
 
     def values(self, deltas: np.ndarray) -> np.ndarray:
         d = np.atleast_2d(deltas)
-        h = self.h0[None] + np.tensordot(d, self.jac, axes=(1, 0))
+        with one_blas_thread():  # exact log L: its bits must not depend on the core count
+            h = self.h0[None] + np.tensordot(d, self.jac, axes=(1, 0))
         return np.asarray(self.head(h), dtype=np.float64)
 
     def value_and_gradient(self, delta: np.ndarray, eps: np.ndarray) -> tuple[float, np.ndarray]:

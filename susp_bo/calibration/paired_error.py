@@ -54,9 +54,9 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from threadpoolctl import ThreadpoolController
 
 from susp_bo.calibration.welch_noise import band_relative_covariance, noise_residual_moments
+from susp_bo.numerics import one_blas_thread
 from susp_bo.rig.spectra import SpectrumSettings
 
 _RANK_TOLERANCE = 1e-8  # eigenvalues of R below this x the largest are treated as 0
@@ -114,12 +114,6 @@ class PairedOutputError:
     def projection(self, run: int) -> tuple[np.ndarray, np.ndarray]:
         """``(R, P)`` of run ``run``: R (F x F), P (F x F') an orthonormal basis of its range."""
         return _projection(self.spectrum, self.n_samples[run], self.sample_rate_hz)
-
-
-@lru_cache(maxsize=1)
-def _blas_controller() -> ThreadpoolController:
-    """The loaded BLAS libraries, found once (a fresh lookup costs milliseconds)."""
-    return ThreadpoolController()
 
 
 @lru_cache(maxsize=32)
@@ -237,7 +231,7 @@ def paired_log_likelihood(
         log L as a float, or (b,) for batched ``simulated``; rounded to 1e-6 nats and
         computed with one BLAS thread, so that it does not depend on the thread count.
     """
-    with _blas_controller().limit(limits=1, user_api="blas"):
+    with one_blas_thread():
         z, lam = whitened_residuals(measured, simulated, error)
     if error.model_error_sigma is None:
         per_channel, _ = profile_model_error(z, lam)
@@ -306,7 +300,7 @@ def paired_fisher_information(
     if error.noise_m_s2 <= 0.0:
         raise ValueError("noise_m_s2: 0 leaves B without a covariance to weigh the bands with")
     info = np.zeros((g.shape[0], g.shape[0]))
-    with _blas_controller().limit(limits=1, user_api="blas"):
+    with one_blas_thread():
         for i in range(h.shape[0]):
             r_full, basis = error.projection(i)
             _, cov = noise_residual_moments(h[i], error.noise_psd, r_full)

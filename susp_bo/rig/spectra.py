@@ -30,6 +30,7 @@ import numpy as np
 import scipy.signal
 from numpy.typing import ArrayLike, NDArray
 
+from susp_bo.numerics import one_blas_thread
 from susp_bo.rig._array_checks import require_positive
 
 FloatArray = NDArray[np.float64]
@@ -177,7 +178,8 @@ def _band_average(psd: FloatArray, bin_width_hz: float, edges_hz: FloatArray) ->
         edges_hz[:-1, None], cell_low[None, :]
     )
     weights = np.clip(overlap, 0.0, None) / np.diff(edges_hz)[:, None]  # (F x K)
-    return psd @ weights.T
+    with one_blas_thread():  # the same bits whatever the thread count
+        return psd @ weights.T
 
 
 def welch_psd(data: FloatArray, sample_rate_hz: float, settings: SpectrumSettings) -> FloatArray:
