@@ -9,9 +9,10 @@ of the parameter vector and of the simulated spectra as stored, plus the draws' 
 Two such files from two CPUs show the first run whose parameters or spectra differ: a
 different spectrum at the same parameters points at the simulator (PyBullet, NumPy), the
 same spectra with different next parameters at the surrogate/acquisition (torch, BLAS).
-Reference (session 17, AMD EPYC Zen 3, pinned numerics, the README demo on a fresh clone):
-``benchmarks/reference/demo_amd_epyc_zen3_runs.json`` and ``..._result.json``; the Intel
-Xeon runs of sessions 10–16 had draws SHA-256 63cef1cb…, that run 00bb65a1….
+Reference (session 18, AMD EPYC Zen 3, pinned numerics, the README demo on a fresh clone of
+commit 33a9088, whose simulator runs BLAS on one thread): ``benchmarks/reference/
+demo_amd_epyc_zen3_runs.json`` and ``..._result.json``, draws SHA-256 04cf3ea8…. Before
+33a9088 the Intel Xeon runs of sessions 10–16 had 63cef1cb…, the AMD EPYC 00bb65a1….
 """
 
 from __future__ import annotations

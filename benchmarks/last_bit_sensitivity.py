@@ -23,7 +23,7 @@ machines — and reports how far each printed figure moves from the unperturbed 
 running one; a run whose folder already holds a ``result.json`` is not run again (a killed
 benchmark continues). ``--compare LABEL=RESULT_JSON`` (repeatable) adds the same demo's
 ``result.json`` from another machine (e.g. ``benchmarks/reference/
-demo_amd_epyc_zen3_result.json``): its moves are reported beside the perturbations'.
+demo_amd_epyc_zen3_session17_result.json``): its moves are reported beside the perturbations'.
 Writes ``OUT/summary.json``, ``OUT/intervals.png`` (each run's 95 % intervals in physical
 units, truth marked) and each run's demo folder ``OUT/run_K``. Bad arguments exit 2
 before anything runs.
