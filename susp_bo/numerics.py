@@ -50,6 +50,13 @@ matrix differed from the native CPU's in 212 of 1 600 last bits). Left as suspec
 kernel keyed on AVX-512 that the pins do not reach (the Intel Xeon has AVX-512, the AMD
 EPYC not). What such a last-bit difference does to a result is measured by
 ``benchmarks/last_bit_sensitivity.py`` (README "Set-up").
+
+The thread count is the other source of last-bit differences on one machine: a BLAS
+product splits its work between threads differently for each count. :func:`one_blas_thread`
+runs a block on one BLAS thread; the simulator's sensor products and band average, the
+local phase's model and the paired likelihood run in it (session 18: before, the demo's
+data and a worker's spectra depended on the core count and on whether the program had
+imported NumPy before the worker pool started).
 """
 
 from __future__ import annotations
