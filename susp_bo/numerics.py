@@ -56,15 +56,20 @@ product splits its work between threads differently for each count. :func:`one_b
 runs a block on one BLAS thread; the simulator's sensor products and band average, the
 local phase's model and the paired likelihood run in it (session 18: before, the demo's
 data and a worker's spectra depended on the core count and on whether the program had
-imported NumPy before the worker pool started).
+imported NumPy before the worker pool started). Session 19: the limit holds while any
+thread is inside such a block (before, the first block to end restored many threads under
+a block still running in another thread, and threadpoolctl silently ignored a change made
+from any thread but the one that first made one).
 """
 
 from __future__ import annotations
 
 import os
 import platform
-from collections.abc import MutableMapping
-from contextlib import AbstractContextManager
+import sys
+import threading
+from collections.abc import Iterator, MutableMapping
+from contextlib import contextmanager
 from functools import lru_cache
 from importlib import metadata
 from typing import TYPE_CHECKING, Any, Literal
@@ -211,22 +216,90 @@ def numerics_in_effect() -> dict[str, Any]:
     }
 
 
-@lru_cache(maxsize=1)
-def _blas_controller() -> ThreadpoolController:
-    """The loaded BLAS libraries, found once (a fresh lookup costs milliseconds)."""
+_BLAS_CARRIERS = ("numpy", "scipy.linalg")
+"""Modules whose import loads a BLAS library of its own (NumPy's, SciPy's OpenBLAS)."""
+
+
+@lru_cache(maxsize=4)
+def _blas_controller(loaded: tuple[bool, ...]) -> ThreadpoolController:
+    """The BLAS libraries loaded, found once per set of ``loaded`` carriers (a fresh
+    lookup costs milliseconds; a carrier imported later gets a new lookup)."""
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
 
 
-def one_blas_thread() -> AbstractContextManager[Any]:
+class _OneBlasThread:
+    """Process-wide state of :func:`one_blas_thread`: how many blocks are inside, and the
+    limiter that restores the thread counts when the last one leaves.
+
+    BLAS thread counts are global to the process, so blocks entered by several threads
+    (a Dask worker runs tasks in threads of one process) share one limit: the first block
+    in sets it, the last block out restores it. Without the count, a block that ends
+    while another thread's block still runs would restore many threads under it.
+    threadpoolctl (≥ 3.6) lets only one thread at a time change OpenBLAS's pthreads pool
+    and silently ignores the others; each change here is made under this lock with that
+    ownership taken and handed back, so it takes effect from whichever thread makes it.
+    """
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.depth = 0
+        self.limiter: Any = None
+
+    def enter(self) -> None:
+        with self.lock:
+            if self.depth == 0:
+                loaded = tuple(name in sys.modules for name in _BLAS_CARRIERS)
+                controller = _blas_controller(loaded)
+                with _openblas_ownership():
+                    self.limiter = controller.limit(limits=1, user_api="blas")
+            self.depth += 1
+
+    def leave(self) -> None:
+        with self.lock:
+            self.depth -= 1
+            if self.depth == 0:
+                with _openblas_ownership():
+                    self.limiter.restore_original_limits()
+                self.limiter = None
+
+
+@contextmanager
+def _openblas_ownership() -> Iterator[None]:
+    """The calling thread may change OpenBLAS's thread count in the block (threadpoolctl
+    hands that right to one thread at a time); nobody holds it afterwards."""
+    from threadpoolctl import OpenBLASController
+
+    clear = getattr(OpenBLASController, "clear_controlling_thread", None)  # threadpoolctl ≥ 3.6
+    if clear is None:
+        yield
+        return
+    clear(force=True)
+    try:
+        yield
+    finally:
+        clear(force=True)
+
+
+_ONE_BLAS_THREAD = _OneBlasThread()
+
+
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
     """Context: the BLAS libraries loaded so far run on one thread in the block.
 
     A BLAS product splits its work between threads differently for each thread count,
     and the split changes the last bits of some results (measured: 1–3 of 480 values of a
     PyBullet run's spectra differ by one unit in the last place between one and two
     OpenBLAS threads). What must not depend on the machine's core count or on how the
-    process was started (a simulator evaluation, the paired likelihood) runs in here.
-    The libraries are looked up at the first call: NumPy's must be loaded by then.
+    process was started (a simulator evaluation, the paired likelihood, the discrepancy
+    workflow's solves) runs in here. Safe to nest and to enter from several threads at
+    once (the limit holds until the last block leaves). The libraries are looked up at
+    the first call, and again once SciPy's linear algebra has been imported.
     """
-    return _blas_controller().limit(limits=1, user_api="blas")
+    _ONE_BLAS_THREAD.enter()
+    try:
+        yield
+    finally:
+        _ONE_BLAS_THREAD.leave()

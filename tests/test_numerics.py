@@ -6,6 +6,8 @@ import json
 import os
 import subprocess
 import sys
+import threading
+from collections.abc import Iterator
 
 import pytest
 
@@ -14,6 +16,7 @@ from susp_bo.numerics import (
     PINNED_CODE_PATHS,
     cpu_flags,
     numpy_avx512_targets,
+    one_blas_thread,
     pin_code_paths,
 )
 
@@ -116,3 +119,86 @@ def test_the_test_suite_runs_with_the_command_lines_numerics() -> None:
     from susp_bo.numerics import numerics_in_effect
 
     assert numerics_in_effect()["machine_independent"] is True
+
+
+def _blas_threads() -> set[int]:
+    """The thread counts of every BLAS library loaded in this process."""
+    from threadpoolctl import threadpool_info
+
+    return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+
+@pytest.fixture
+def two_blas_threads() -> Iterator[None]:
+    """BLAS on two threads around the test (skips where the libraries will not take 2)."""
+    import numpy  # noqa: F401  (its BLAS must be loaded to be limited)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        if _blas_threads() != {2}:
+            pytest.skip("needs a BLAS that runs on 2 threads here")
+        yield
+
+
+def test_one_blas_thread_holds_until_the_last_of_two_threads_leaves(
+    two_blas_threads: None,
+) -> None:
+    # A Dask worker runs tasks in threads of one process; BLAS thread counts are global.
+    # Thread a enters, b enters, a leaves: b must still run on one thread.
+    a_inside, b_inside, a_left, b_checked = (threading.Event() for _ in range(4))
+    seen: dict[str, set[int]] = {}
+
+    def a() -> None:
+        with one_blas_thread():
+            a_inside.set()
+            b_inside.wait(10)
+        a_left.set()
+
+    def b() -> None:
+        a_inside.wait(10)
+        with one_blas_thread():
+            b_inside.set()
+            a_left.wait(10)
+            seen["b after a left"] = _blas_threads()
+        b_checked.set()
+
+    threads = [threading.Thread(target=a), threading.Thread(target=b)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(20)
+    assert b_checked.is_set()
+    assert seen["b after a left"] == {1}
+    assert _blas_threads() == {2}  # restored once the last block left
+
+
+def test_one_blas_thread_nests_and_restores_the_callers_count(two_blas_threads: None) -> None:
+    with one_blas_thread():
+        with one_blas_thread():
+            assert _blas_threads() == {1}
+        assert _blas_threads() == {1}  # the inner block's exit did not restore
+    assert _blas_threads() == {2}
+    with pytest.raises(RuntimeError), one_blas_thread():
+        raise RuntimeError("a failing block restores too")
+    assert _blas_threads() == {2}
+
+
+def test_one_blas_thread_limits_scipys_blas_imported_after_its_first_use() -> None:
+    # NumPy and SciPy each carry their own OpenBLAS; SciPy's often loads later.
+    script = (
+        "import susp_bo, numpy\n"
+        "from susp_bo.numerics import one_blas_thread\n"
+        "from threadpoolctl import threadpool_info, threadpool_limits\n"
+        "with one_blas_thread(): pass\n"
+        "import scipy.linalg\n"
+        "threadpool_limits(limits=2, user_api='blas')\n"
+        "with one_blas_thread():\n"
+        "    inside = [p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas']\n"
+        "print(inside)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True, timeout=120
+    )
+    inside = json.loads(done.stdout)
+    assert len(inside) >= 2  # NumPy's and SciPy's libraries both seen ...
+    assert set(inside) == {1}  # ... and both on one thread

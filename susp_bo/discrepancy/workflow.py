@@ -25,8 +25,7 @@
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,6 +38,7 @@ from susp_bo.discrepancy.problem import DiagnosisProblem, Simulator
 from susp_bo.discrepancy.ranking import RankedEffect, rank_effects
 from susp_bo.discrepancy.report import DiagnosisReport
 from susp_bo.discrepancy.verdict import NamingCheck, NamingRule, accept_augmented, check_naming
+from susp_bo.numerics import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -106,19 +106,6 @@ def fit_base(
     )
 
 
-@contextlib.contextmanager
-def single_threaded_blas() -> Iterator[None]:
-    """BLAS on one thread while the block runs (the small solves of the fast path are
-    several times faster so, on a shared machine by far); restored afterwards."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl ships with the scientific stack
-        yield
-        return
-    with threadpool_limits(limits=1, user_api="blas"):
-        yield
-
-
 Recalibrate = Callable[[RankedEffect], Fit]
 """``recalibrate(best) -> Fit``: calibrate the augmented rig of the best candidate."""
 
@@ -146,7 +133,7 @@ def run_workflow(
             candidate's refit, i.e. the same least-squares machinery as the base).
     """
     settings = settings or WorkflowSettings()
-    with single_threaded_blas():
+    with one_blas_thread():  # the small solves are faster so, and core-count independent
         return _run(problem, simulator, base, settings, fast or simulator, recalibrate)
 
 
