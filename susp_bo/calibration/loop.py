@@ -85,6 +85,7 @@ from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 from susp_bo.calibration.trust_region import box_edge, to_global_unit
+from susp_bo.numerics import one_blas_thread
 from susp_bo.progress import progress_bar
 
 logger = logging.getLogger(__name__)
@@ -175,6 +176,7 @@ def _run_local_phase(
     return data.x, data.y, result, data.iteration
 
 
+@one_blas_thread()  # main-process BLAS (log L, surrogate, chains) core-count independent
 def calibrate(
     evaluate: Evaluate,
     bounds: np.ndarray,

@@ -65,7 +65,7 @@ from susp_bo.calibration.study_preparation import (
 from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
-from susp_bo.numerics import numerics_in_effect
+from susp_bo.numerics import numerics_in_effect, one_blas_thread
 from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
 from susp_bo.rig.spec import RigSpec
 from susp_bo.store import EvaluationStore, StoreMismatchError
@@ -230,6 +230,7 @@ def result_payload(
     return payload
 
 
+@one_blas_thread()  # main-process BLAS (log L, surrogate, chains) core-count independent
 def run_study(
     config: StudyConfig,
     resume: bool = False,

@@ -97,21 +97,35 @@ def test_deterministic_given_seed_and_evaluations(small_banana: CalibrationResul
 
 def test_evaluate_runs_under_the_callers_torch_state() -> None:
     """calibrate's own torch work runs single-threaded under torch's stock default dtype;
-    every ``evaluate`` call, in every phase (the basin phase's too), sees the caller's."""
+    every ``evaluate`` call, in every phase (the basin phase's too), sees the caller's.
+    BLAS (NumPy's: the log L of a study, the local phase's model) runs on one thread in
+    the whole call, evaluate included, whatever the caller set, so that the result does not
+    depend on the machine's core count; the caller's count is back afterwards."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads() -> set[int]:
+        return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
     target = TARGETS["banana_2d"]()
     seen: set[tuple[torch.dtype, int]] = set()
+    blas_seen: set[int] = set()
 
     def evaluate(w: np.ndarray) -> np.ndarray:
         seen.add((torch.get_default_dtype(), torch.get_num_threads()))
+        blas_seen.update(blas_threads())
         return target(w)
 
     torch.set_num_threads(2)
     try:
-        result = calibrate(evaluate, target.bounds, target.names, _small(), progress=False)
+        with threadpool_limits(limits=2, user_api="blas"):
+            caller_blas = blas_threads()
+            result = calibrate(evaluate, target.bounds, target.names, _small(), progress=False)
+            assert blas_threads() == caller_blas
     finally:
         torch.set_num_threads(1)
     assert {item.phase for item in result.history} >= {"basin", "refine"}
     assert seen == {(torch.float64, 2)}
+    assert blas_seen == {1}
 
 
 @pytest.mark.slow
