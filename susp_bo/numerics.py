@@ -56,7 +56,10 @@ product splits its work between threads differently for each count. :func:`one_b
 runs a block on one BLAS thread; the simulator's sensor products and band average, the
 local phase's model and the paired likelihood run in it (session 18: before, the demo's
 data and a worker's spectra depended on the core count and on whether the program had
-imported NumPy before the worker pool started). Session 19: the limit holds while any
+imported NumPy before the worker pool started). Since session 19 the whole of
+:func:`~susp_bo.calibration.loop.calibrate` and :func:`~susp_bo.calibration.study.run_study`
+runs in it too (the main process's log L, surrogate and chains: a 16-core machine splits
+their products in other pieces than a 2-core one may); and the limit holds while any
 thread is inside such a block (before, the first block to end restored many threads under
 a block still running in another thread, and threadpoolctl silently ignored a change made
 from any thread but the one that first made one).
