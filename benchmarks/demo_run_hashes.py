@@ -9,10 +9,12 @@ of the parameter vector and of the simulated spectra as stored, plus the draws' 
 Two such files from two CPUs show the first run whose parameters or spectra differ: a
 different spectrum at the same parameters points at the simulator (PyBullet, NumPy), the
 same spectra with different next parameters at the surrogate/acquisition (torch, BLAS).
-Reference (session 18, AMD EPYC Zen 3, pinned numerics, the README demo on a fresh clone of
-commit 33a9088, whose simulator runs BLAS on one thread): ``benchmarks/reference/
-demo_amd_epyc_zen3_runs.json`` and ``..._result.json``, draws SHA-256 04cf3ea8…. Before
-33a9088 the Intel Xeon runs of sessions 10–16 had 63cef1cb…, the AMD EPYC 00bb65a1….
+Reference (session 19, AMD EPYC Zen 3, pinned numerics, the README demo on a fresh clone of
+commit a0891f1, whose whole calibration runs BLAS on one thread): ``benchmarks/reference/
+demo_amd_epyc_zen3_runs.json`` and ``..._result.json``, draws SHA-256 5b672c75…; its first
+321 runs equal session 18's (``..._session18_runs.json``, commit 33a9088, 04cf3ea8…), whose
+local phase ran the main process's products on two threads. Before 33a9088 the Intel Xeon
+runs of sessions 10–16 had 63cef1cb…, the AMD EPYC 00bb65a1….
 """
 
 from __future__ import annotations
