@@ -16,7 +16,7 @@ import os
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import tomllib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +54,18 @@ def _float64_and_seeded_torch() -> Iterator[None]:
     torch.manual_seed(0)
     yield
     torch.set_default_dtype(previous)
+
+
+@pytest.fixture
+def blas_thread_counts() -> Callable[[], set[int]]:
+    """A function giving the thread counts of every BLAS library loaded in this process,
+    read at each call (threadpoolctl), e.g. ``{1}`` inside ``one_blas_thread()``."""
+    from threadpoolctl import threadpool_info
+
+    def counts() -> set[int]:
+        return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+    return counts
 
 
 FAST_TIME_STEP_S = 0.005

@@ -7,7 +7,7 @@ import os
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -121,27 +121,20 @@ def test_the_test_suite_runs_with_the_command_lines_numerics() -> None:
     assert numerics_in_effect()["machine_independent"] is True
 
 
-def _blas_threads() -> set[int]:
-    """The thread counts of every BLAS library loaded in this process."""
-    from threadpoolctl import threadpool_info
-
-    return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
-
-
 @pytest.fixture
-def two_blas_threads() -> Iterator[None]:
+def two_blas_threads(blas_thread_counts: Callable[[], set[int]]) -> Iterator[None]:
     """BLAS on two threads around the test (skips where the libraries will not take 2)."""
     import numpy  # noqa: F401  (its BLAS must be loaded to be limited)
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=2, user_api="blas"):
-        if _blas_threads() != {2}:
+        if blas_thread_counts() != {2}:
             pytest.skip("needs a BLAS that runs on 2 threads here")
         yield
 
 
 def test_one_blas_thread_holds_until_the_last_of_two_threads_leaves(
-    two_blas_threads: None,
+    two_blas_threads: None, blas_thread_counts: Callable[[], set[int]]
 ) -> None:
     # A Dask worker runs tasks in threads of one process; BLAS thread counts are global.
     # Thread a enters, b enters, a leaves: b must still run on one thread.
@@ -159,7 +152,7 @@ def test_one_blas_thread_holds_until_the_last_of_two_threads_leaves(
         with one_blas_thread():
             b_inside.set()
             a_left.wait(10)
-            seen["b after a left"] = _blas_threads()
+            seen["b after a left"] = blas_thread_counts()
         b_checked.set()
 
     threads = [threading.Thread(target=a), threading.Thread(target=b)]
@@ -169,18 +162,20 @@ def test_one_blas_thread_holds_until_the_last_of_two_threads_leaves(
         thread.join(20)
     assert b_checked.is_set()
     assert seen["b after a left"] == {1}
-    assert _blas_threads() == {2}  # restored once the last block left
+    assert blas_thread_counts() == {2}  # restored once the last block left
 
 
-def test_one_blas_thread_nests_and_restores_the_callers_count(two_blas_threads: None) -> None:
+def test_one_blas_thread_nests_and_restores_the_callers_count(
+    two_blas_threads: None, blas_thread_counts: Callable[[], set[int]]
+) -> None:
     with one_blas_thread():
         with one_blas_thread():
-            assert _blas_threads() == {1}
-        assert _blas_threads() == {1}  # the inner block's exit did not restore
-    assert _blas_threads() == {2}
+            assert blas_thread_counts() == {1}
+        assert blas_thread_counts() == {1}  # the inner block's exit did not restore
+    assert blas_thread_counts() == {2}
     with pytest.raises(RuntimeError), one_blas_thread():
         raise RuntimeError("a failing block restores too")
-    assert _blas_threads() == {2}
+    assert blas_thread_counts() == {2}
 
 
 def test_one_blas_thread_limits_scipys_blas_imported_after_its_first_use() -> None:

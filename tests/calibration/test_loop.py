@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -95,16 +96,15 @@ def test_deterministic_given_seed_and_evaluations(small_banana: CalibrationResul
     assert not np.array_equal(a.X, c.X)
 
 
-def test_evaluate_runs_under_the_callers_torch_state() -> None:
+def test_evaluate_runs_under_the_callers_torch_state(
+    blas_thread_counts: Callable[[], set[int]],
+) -> None:
     """calibrate's own torch work runs single-threaded under torch's stock default dtype;
     every ``evaluate`` call, in every phase (the basin phase's too), sees the caller's.
     BLAS (NumPy's: the log L of a study, the local phase's model) runs on one thread in
     the whole call, evaluate included, whatever the caller set, so that the result does not
     depend on the machine's core count; the caller's count is back afterwards."""
-    from threadpoolctl import threadpool_info, threadpool_limits
-
-    def blas_threads() -> set[int]:
-        return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+    from threadpoolctl import threadpool_limits
 
     target = TARGETS["banana_2d"]()
     seen: set[tuple[torch.dtype, int]] = set()
@@ -112,15 +112,15 @@ def test_evaluate_runs_under_the_callers_torch_state() -> None:
 
     def evaluate(w: np.ndarray) -> np.ndarray:
         seen.add((torch.get_default_dtype(), torch.get_num_threads()))
-        blas_seen.update(blas_threads())
+        blas_seen.update(blas_thread_counts())
         return target(w)
 
     torch.set_num_threads(2)
     try:
         with threadpool_limits(limits=2, user_api="blas"):
-            caller_blas = blas_threads()
+            caller_blas = blas_thread_counts()
             result = calibrate(evaluate, target.bounds, target.names, _small(), progress=False)
-            assert blas_threads() == caller_blas
+            assert blas_thread_counts() == caller_blas
     finally:
         torch.set_num_threads(1)
     assert {item.phase for item in result.history} >= {"basin", "refine"}
