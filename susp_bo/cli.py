@@ -189,6 +189,7 @@ def _user_error_types() -> tuple[type[BaseException], ...]:
         ("susp_bo.calibration.study_inputs", "StudyError"),
         ("susp_bo.data.measured", "MeasuredDataError"),
         ("susp_bo.store", "StoreMismatchError"),
+        ("susp_bo.store", "StoreFileError"),
     )
     loaded = tuple(
         getattr(sys.modules[module], name) for module, name in project if module in sys.modules

@@ -213,6 +213,39 @@ class RestartableProcessPool(Executor):
         self._pool.shutdown(wait=wait, cancel_futures=cancel_futures)
 
 
+_PORT_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+"""Dask comm protocols whose addresses are ``host:port`` (``inproc://`` has no port)."""
+
+
+def scheduler_address_problem(address: str) -> str | None:
+    """What is wrong with a Dask scheduler address, or None when it is well formed.
+
+    Dask's grammar: ``[protocol://]host:port``, the protocol ``tcp`` when omitted (so
+    ``10.0.0.5:8786`` is allowed), or ``inproc://…``. Checked before anything is written or
+    connected: Dask itself raises a bare ``ValueError`` from inside ``Client`` for a
+    malformed one (and its half-built client then times out again when collected).
+
+    Args:
+        address: the address as given (``--scheduler`` or ``[executor] scheduler``).
+
+    Returns:
+        A plain reason naming what is missing, or None.
+    """
+    scheme, separator, location = address.partition("://")
+    if not separator:
+        scheme, location = "tcp", address
+    if scheme == "inproc":
+        return None if location else "no location after 'inproc://'"
+    if scheme not in _PORT_SCHEMES:
+        return f"unknown protocol {scheme!r} (expected one of {', '.join(_PORT_SCHEMES)}, inproc)"
+    host, colon, port = location.rpartition(":")
+    if not colon or not port.isdigit() or not 0 < int(port) < 65536:
+        return "no port number in 1–65535 after the host (expected host:port)"
+    if host in ("", "[]"):
+        return "no host before the port"
+    return None
+
+
 @contextmanager
 def make_executor(
     workers: int | None = None, scheduler: str | None = None, connect_timeout_s: float = 10.0
@@ -229,7 +262,8 @@ def make_executor(
         The executor; shut down (and the Dask client closed) on exit.
 
     Raises:
-        ValueError: both ``workers`` and ``scheduler`` given, or workers < 0.
+        ValueError: both ``workers`` and ``scheduler`` given, workers < 0, or a malformed
+            scheduler address (:func:`scheduler_address_problem`).
         ImportError: a scheduler is given but dask.distributed is not installed.
         ConnectionError: the scheduler cannot be reached.
     """
@@ -238,6 +272,9 @@ def make_executor(
             f"workers={workers} and scheduler={scheduler!r}: give one of them, not both"
         )
     if scheduler is not None:
+        problem = scheduler_address_problem(scheduler)
+        if problem is not None:
+            raise ValueError(f"scheduler {scheduler!r}: {problem}, e.g. 'tcp://10.0.0.5:8786'")
         with _dask_executor(scheduler, connect_timeout_s) as executor:
             yield executor
         return

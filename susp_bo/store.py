@@ -93,6 +93,10 @@ class StoreMismatchError(ValueError):
         self.key, self.stored, self.current = key, stored, current
 
 
+class StoreFileError(ValueError):
+    """The file is not a readable evaluation store (another file, or a damaged one)."""
+
+
 @dataclass(frozen=True, eq=False)  # holds arrays: compare fields, not objects
 class Evaluation:
     """One recorded simulator evaluation.
@@ -217,7 +221,8 @@ class EvaluationStore:
     Raises:
         StoreMismatchError: the existing file was made for another study; the
             message names the key that differs and both values.
-        ValueError: the file exists but is not an evaluation store.
+        StoreFileError: the file exists but is not a readable evaluation store (not
+            SQLite, damaged, or a database of other tables); the file is left as it was.
     """
 
     def __init__(
@@ -235,6 +240,10 @@ class EvaluationStore:
         self._db = sqlite3.connect(self.path, isolation_level=None)
         try:
             self._open()
+        except sqlite3.DatabaseError as error:  # e.g. a damaged file: "disk image is malformed"
+            self._db.close()
+            message = f"{self.path}: not a readable evaluation store ({error})"
+            raise StoreFileError(message) from error
         except BaseException:
             self._db.close()
             raise
@@ -243,7 +252,8 @@ class EvaluationStore:
         try:
             mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
         except sqlite3.DatabaseError as error:
-            raise ValueError(f"{self.path}: not an evaluation store ({error})") from error
+            message = f"{self.path}: not a readable evaluation store ({error})"
+            raise StoreFileError(message) from error
         if str(mode).lower() != "wal":
             raise ValueError(f"{self.path}: SQLite refused WAL mode (journal_mode={mode})")
         # FULL: a committed evaluation survives power loss too, not only a killed process.
@@ -252,7 +262,7 @@ class EvaluationStore:
         with self._transaction():
             tables = {r[0] for r in self._db.execute("SELECT name FROM sqlite_master")}
             if tables and "study" not in tables:
-                raise ValueError(
+                raise StoreFileError(
                     f"{self.path}: not an evaluation store (tables {sorted(tables)}, no 'study')"
                 )
             if not tables:

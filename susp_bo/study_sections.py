@@ -102,6 +102,15 @@ class ExecutorConfig:
                 f"executor.scheduler: {self.scheduler!r} is not allowed; expected an address "
                 "such as 'tcp://host:8786'"
             )
+        if self.scheduler is not None:
+            from susp_bo.execution import scheduler_address_problem
+
+            problem = scheduler_address_problem(self.scheduler)
+            if problem is not None:
+                raise ValueError(
+                    f"executor.scheduler: {self.scheduler!r} is not allowed: {problem}; "
+                    "expected an address such as 'tcp://10.0.0.5:8786'"
+                )
         if self.workers is not None and self.scheduler is not None:
             raise ValueError(
                 f"executor: workers = {self.workers} and scheduler = {self.scheduler!r} are not "

@@ -177,6 +177,39 @@ def test_make_executor_rejects_bad_arguments() -> None:
         pass
 
 
+@pytest.mark.parametrize(
+    ("address", "problem"),
+    [
+        ("tcp://10.0.0.5:8786", None),
+        ("10.0.0.5:8786", None),  # Dask's default protocol is tcp
+        ("tls://[::1]:8786", None),
+        ("inproc://10.0.0.5/1234/1", None),
+        ("notanaddress", "no port number"),
+        ("tcp://host", "no port number"),
+        ("tcp://host:0", "no port number"),
+        ("host:99999", "no port number"),
+        ("tcp://:8786", "no host"),
+        ("foo://h:1", "unknown protocol 'foo'"),
+        ("inproc://", "no location"),
+    ],
+)
+def test_scheduler_address_grammar(address: str, problem: str | None) -> None:
+    from susp_bo.execution import scheduler_address_problem
+
+    found = scheduler_address_problem(address)
+    assert (found is None) if problem is None else (found is not None and problem in found)
+
+
+def test_a_malformed_scheduler_is_refused_before_connecting() -> None:
+    # Dask raised a bare ValueError from inside Client (and its half-made client then timed
+    # out again when collected): now refused before any connection, naming the address
+    with (
+        pytest.raises(ValueError, match=r"scheduler 'notanaddress': no port number"),
+        make_executor(scheduler="notanaddress", connect_timeout_s=1.0),
+    ):
+        pass
+
+
 def test_unreachable_scheduler_is_a_clear_connection_error() -> None:
     pytest.importorskip("distributed")
     with (

@@ -20,6 +20,7 @@ import susp_bo
 from susp_bo.store import (
     STORE_SCHEMA_VERSION,
     EvaluationStore,
+    StoreFileError,
     StoreMismatchError,
     evaluation_key,
     files_fingerprint,
@@ -106,13 +107,27 @@ def test_fingerprint_records_schema_and_major_minor_version(tmp_path: Path) -> N
 def test_files_that_are_not_stores_are_refused(tmp_path: Path) -> None:
     text = tmp_path / "notes.sqlite"
     text.write_text("this is not a database, it is a note about dampers\n" * 20)
-    with pytest.raises(ValueError, match="not an evaluation store"):
+    with pytest.raises(StoreFileError, match="not a readable evaluation store"):
         EvaluationStore(text, FINGERPRINT)
     other = tmp_path / "other.sqlite"
     with sqlite3.connect(other) as db:
         db.execute("CREATE TABLE wheels (diameter REAL)")
-    with pytest.raises(ValueError, match=r"not an evaluation store \(tables \['wheels'\]"):
+    with pytest.raises(StoreFileError, match=r"not an evaluation store \(tables \['wheels'\]"):
         EvaluationStore(other, FINGERPRINT)
+
+
+def test_a_damaged_store_is_a_store_file_error_and_is_left_as_it_was(tmp_path: Path) -> None:
+    path = tmp_path / "s.sqlite"
+    with EvaluationStore(path, FINGERPRINT) as store:
+        for k in range(40):
+            store.record_failure([1.0, float(k)], "run-01", "ValueError: diverged", 0.1)
+    cut = path.read_bytes()[:3000]  # a copy cut short: "database disk image is malformed"
+    path.write_bytes(cut)
+    for wal in tmp_path.glob("s.sqlite-*"):
+        wal.unlink()
+    with pytest.raises(StoreFileError, match=r"s\.sqlite: not a readable evaluation store"):
+        EvaluationStore(path, FINGERPRINT)
+    assert path.read_bytes() == cut
 
 
 def test_store_uses_wal_and_is_readable_by_another_connection(tmp_path: Path) -> None:

@@ -32,6 +32,7 @@ def test_sections_by_table_name_in_file_order() -> None:
         (lambda: SeedsConfig(mcmc=-1), r"seeds\.mcmc: -1 .* >= 0"),
         (lambda: ExecutorConfig(workers=2, scheduler="tcp://h:8786"), r"not allowed together"),
         (lambda: ExecutorConfig(scheduler=""), r"executor\.scheduler: ''"),
+        (lambda: ExecutorConfig(scheduler="host"), r"executor\.scheduler: 'host'.*no port"),
         (lambda: MCMCConfig(chains=0), r"mcmc\.chains: 0 is not allowed"),
         (lambda: MCMCConfig(sampler="nuts"), r'"random_walk", "hmc", "auto"'),
         (lambda: SearchConfig(kernel="rbf"), r'"matern", "additive_pairs", "auto"'),

@@ -38,6 +38,7 @@ import math
 import sys
 import time
 from concurrent.futures import Executor
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
@@ -55,10 +56,11 @@ from susp_bo.calibration.loop import (
     calibrate,
 )
 from susp_bo.calibration.paired_error import PairedOutputError
-from susp_bo.calibration.study_inputs import store_mismatch
+from susp_bo.calibration.study_inputs import StudyError, store_mismatch
 from susp_bo.calibration.study_preparation import (
     STORE_NAME,
     PreparedStudy,
+    check_resume_budget,
     prepare_study,
     store_fingerprint,
 )
@@ -68,7 +70,7 @@ from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect, one_blas_thread
 from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
 from susp_bo.rig.spec import RigSpec
-from susp_bo.store import EvaluationStore, StoreMismatchError
+from susp_bo.store import EvaluationStore, StoreFileError, StoreMismatchError
 from susp_bo.study_config import StudyConfig
 
 MAX_SAVED_SAMPLES = 20_000
@@ -262,28 +264,34 @@ def run_study(
         StudyError: bad inputs, before any simulation.
     """
     study = prepare_study(config, resume=resume)
+    if resume:
+        check_resume_budget(config)
     out = config.out
-    out.mkdir(parents=True, exist_ok=True)
-    try:  # before anything is written: a refused resume leaves the folder as it was
-        store = EvaluationStore(out / STORE_NAME, store_fingerprint(study))
-    except StoreMismatchError as error:
-        raise store_mismatch(out, error) from None
-    (out / CONFIG_NAME).write_text(config.to_toml())
-    log = _logger(out)
-    log.info(
-        "study %s: rig %s, %d runs, parameters %s",
-        out,
-        study.spec.name,
-        len(study.runs),
-        study.names,
-    )
-    started = time.perf_counter()
-    with (
-        store,
-        make_executor(
-            workers=config.executor.workers, scheduler=config.executor.scheduler
-        ) as executor,
-    ):
+    with ExitStack() as stack:
+        # the executor first: a scheduler that cannot be reached leaves the folder untouched
+        executor = stack.enter_context(
+            make_executor(workers=config.executor.workers, scheduler=config.executor.scheduler)
+        )
+        out.mkdir(parents=True, exist_ok=True)
+        try:  # before anything is written: a refused resume leaves the folder as it was
+            store = stack.enter_context(EvaluationStore(out / STORE_NAME, store_fingerprint(study)))
+        except StoreMismatchError as error:
+            raise store_mismatch(out, error) from None
+        except StoreFileError as error:
+            raise StudyError(
+                f"out: {error}; it is left as it was: move it away to start this study afresh "
+                "(its evaluations cannot be read back), or choose another output folder"
+            ) from None
+        (out / CONFIG_NAME).write_text(config.to_toml())
+        log = _logger(out)
+        log.info(
+            "study %s: rig %s, %d runs, parameters %s",
+            out,
+            study.spec.name,
+            len(study.runs),
+            study.names,
+        )
+        started = time.perf_counter()
         evaluator = study_evaluator(study, store, executor, progress=progress)
 
         def report(item: IterationReport) -> None:

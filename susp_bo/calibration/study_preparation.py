@@ -31,7 +31,7 @@ from susp_bo.calibration.study_inputs import (
 )
 from susp_bo.data.measured import MeasuredRun, load_runs
 from susp_bo.data.run_validation import validate_run
-from susp_bo.output_folder import check_output_folder
+from susp_bo.output_folder import RESULT_NAME, check_output_folder
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.store import study_fingerprint
@@ -123,6 +123,33 @@ def _output_error(
     if missing:
         raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
     return OutputError(tuple(float(sigma[c]) for c in channels), ell)
+
+
+def check_resume_budget(config: StudyConfig) -> None:
+    """Refuses a resume whose budget is below the finished result's evaluations.
+
+    A resume extends a study: with a smaller budget it would replace the folder's finished
+    result (``result.json``, the draws, the figures) by one from fewer evaluations, and
+    its check points, placed earlier, would cost new simulations. A folder without a
+    readable result (an interrupted study) has nothing to replace.
+
+    Raises:
+        StudyError: naming --budget (``budget.max_evaluations``), the value, the finished
+            result's count and what to do.
+    """
+    try:
+        finished = json.loads((config.out / RESULT_NAME).read_text())
+        done = int(finished["n_evaluations"])
+    except (OSError, ValueError, TypeError, KeyError):
+        return
+    budget = config.budget.max_evaluations
+    if budget < done:
+        raise StudyError(
+            f"--budget (budget.max_evaluations): {budget} is below the {done} likelihood "
+            f"evaluations of the finished result in {config.out / RESULT_NAME}; a resume only "
+            f"extends a study: give {done} or more (the same {done} rewrites the same result), "
+            "or calibrate into another output folder to see what a smaller budget gives"
+        )
 
 
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:

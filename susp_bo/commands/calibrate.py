@@ -74,6 +74,8 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
             config = dataclasses.replace(
                 config, budget=dataclasses.replace(config.budget, allow_small=True)
             )
+        if args.scheduler is not None:
+            _check_scheduler_flag(args.scheduler)
         if args.workers is not None or args.scheduler is not None:
             config = dataclasses.replace(
                 config, executor=ExecutorConfig(workers=args.workers, scheduler=args.scheduler)
@@ -81,6 +83,22 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
     except ValueError as error:
         raise UsageError(str(error)) from error
     return config
+
+
+def _check_scheduler_flag(address: str) -> None:
+    """Refuses a malformed ``--scheduler`` before anything is written or connected.
+
+    Raises:
+        UsageError: naming --scheduler, the value, what is wrong and an example.
+    """
+    from susp_bo.execution import scheduler_address_problem
+
+    problem = scheduler_address_problem(address) if address else "empty"
+    if problem is not None:
+        raise UsageError(
+            f"--scheduler: {address!r} is not allowed: {problem}; expected the address of a "
+            "running Dask scheduler, e.g. 'tcp://10.0.0.5:8786'"
+        )
 
 
 def _calibrated_count(config: StudyConfig) -> int | None:

@@ -53,6 +53,17 @@ def test_an_unknown_calibration_parameter_is_refused(
     assert "wheel_colour" in err and "yaw_damper_damping" in err
 
 
+def test_a_malformed_scheduler_is_refused_naming_the_flag(
+    data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    argv = ["calibrate", "hst_trailer", str(data_dir), "--out", str(out)]
+    assert main([*argv, "--scheduler", "notanaddress"]) == 2
+    err = capsys.readouterr().err
+    assert "--scheduler: 'notanaddress' is not allowed: no port number" in err
+    assert "tcp://10.0.0.5:8786" in err and not out.exists()
+
+
 def test_resume_without_a_store_is_refused(
     data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -1,10 +1,14 @@
-"""A study killed with SIGKILL mid-batch resumes to exactly the uninterrupted result."""
+"""A study killed with SIGKILL mid-batch resumes to exactly the uninterrupted result; what
+``--resume`` refuses before any simulation, touching nothing (a budget below the finished
+result's evaluations, a damaged store); a scheduler that cannot be reached leaves a new
+results folder unmade."""
 
 from __future__ import annotations
 
 import contextlib
 import json
 import os
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -109,3 +113,58 @@ def test_kill_9_mid_batch_then_resume_gives_the_same_result(
     # finished evaluations were reused, not re-run: their rows are untouched
     created_after = {key: created for key, _, _, created in after}
     assert all(created_after[key] == created for key, created in before.items())
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+@pytest.fixture
+def finished_copy(uninterrupted: Path, tmp_path: Path) -> Path:
+    """A private copy of the finished small study (10 evaluations, q = 2)."""
+    copy = tmp_path / "finished"
+    shutil.copytree(uninterrupted, copy)
+    return copy
+
+
+def test_a_resume_below_the_finished_evaluations_is_refused(
+    finished_copy: Path, calibrate_command
+) -> None:
+    done = json.loads((finished_copy / "result.json").read_text())["n_evaluations"]
+    before = _snapshot(finished_copy)
+    refused = calibrate_command(
+        finished_copy / "study.toml", "--out", str(finished_copy), "--resume",
+        "--budget", str(done - 2), "--allow-small-budget",
+    )  # fmt: skip
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "Traceback" not in refused.stderr
+    assert f"--budget (budget.max_evaluations): {done - 2} is below the {done}" in refused.stderr
+    assert _snapshot(finished_copy) == before  # result, draws, figures and store as they were
+
+
+def test_a_damaged_store_is_named_and_left_as_it_was(
+    finished_copy: Path, calibrate_command
+) -> None:
+    store = finished_copy / "evaluations.sqlite"
+    store.write_bytes(store.read_bytes()[:3000])  # cut short: "disk image is malformed"
+    before = _snapshot(finished_copy)
+    refused = calibrate_command(
+        finished_copy / "study.toml", "--out", str(finished_copy), "--resume"
+    )
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "Traceback" not in refused.stderr
+    assert f"{store}: not a readable evaluation store" in refused.stderr
+    assert "move it away" in refused.stderr
+    assert _snapshot(finished_copy) == before
+
+
+def test_an_unreachable_scheduler_leaves_no_results_folder(
+    fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command
+) -> None:
+    pytest.importorskip("distributed")
+    out = tmp_path / "never_made"
+    config = study_writer(tmp_path, fast_rig, fast_data, out, executor="")
+    refused = calibrate_command(config, "--scheduler", "tcp://127.0.0.1:9")
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "scheduler 'tcp://127.0.0.1:9': cannot connect" in refused.stderr
+    assert not out.exists()
