@@ -3,13 +3,27 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
 from susp_bo.cli import UsageError
-from susp_bo.commands._arguments import integer, number
+from susp_bo.commands._arguments import integer
 from susp_bo.output_folder import check_output_folder
+
+
+def probability(text: str) -> float:
+    """``--threshold``: a probability strictly between 0 and 1 (an ``argparse`` type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 < value < 1.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not allowed; expected a probability in (0, 1)"
+        )
+    return value
 
 
 def add_parser(sub: Any) -> None:
@@ -34,7 +48,7 @@ def add_parser(sub: Any) -> None:
     group.add_argument("--scheduler", help="Dask scheduler address")
     monitor.add_argument(
         "--threshold",
-        type=number(0, strict=True),
+        type=probability,
         default=0.9,
         help="alarm when P(outside) exceeds it on a trusted calibration (default: %(default)s)",
     )
@@ -54,8 +68,6 @@ def add_parser(sub: Any) -> None:
 
 def run_monitor(args: argparse.Namespace) -> int:
     """Run (or continue) the monitoring and print the maintenance table."""
-    if not 0.0 < args.threshold < 1.0:
-        raise UsageError(f"--threshold: got {args.threshold}; expected a probability in (0, 1)")
     folder = Path(args.folder)
     if not folder.is_dir():  # before torch is loaded (discover_campaigns says the same)
         raise UsageError(f"{folder}: not a folder (expected a monitoring folder of campaigns)")

@@ -4,6 +4,8 @@
 - :mod:`~susp_bo.monitoring.alarms` — P(outside), the alarm rule, the maintenance table.
 - :mod:`~susp_bo.monitoring.runner` — :func:`monitor`: every campaign calibrated (resumable),
   ``monitor.json``.
+- :mod:`~susp_bo.monitoring.campaign_results` — a campaign's results folder checked before
+  it is reused (same runs, rig and output error; readable result and draws).
 - :mod:`~susp_bo.monitoring.figures` — trend figures.
 - :mod:`~susp_bo.monitoring.scenario` — a known-answer degradation scenario.
 """

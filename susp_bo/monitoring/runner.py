@@ -12,6 +12,13 @@ level and inside a campaign:
   bit for bit, the result equals that of an uninterrupted run);
 - a campaign added to the monitoring folder later is simply new work.
 
+Before any simulation every campaign is checked (:func:`check_campaign`): a finished or
+interrupted campaign is reused only if its evaluation store's fingerprint matches the
+runs now in its folder, the rig and the output error
+(:mod:`~susp_bo.monitoring.campaign_results`), and a finished one only if its result and
+draws are readable; otherwise the run stops naming the results folder and what to do,
+and nothing is written.
+
 Execution: campaigns run **in sequence**, each study's simulator runs in
 parallel on the process pool (``workers``) or the Dask cluster (``scheduler``).
 An EGO batch (``batch_size`` points × ν track stretches) already fills the
@@ -50,6 +57,11 @@ from susp_bo.monitoring.alarms import (
     summarise_parameter,
     trust,
 )
+from susp_bo.monitoring.campaign_results import (
+    CampaignResultError,
+    check_campaign_store,
+    read_finished,
+)
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
 from susp_bo.monitoring.warm_start import plan_warm_start
 from susp_bo.rig.spec import load_rig_spec
@@ -67,6 +79,12 @@ class MonitorError(ValueError):
     """A monitoring run that cannot start: bad folder, settings or campaign."""
 
 
+def _flag_error(flag: str, key: str, error: Exception) -> MonitorError:
+    """``error`` (a message ``"<key>: …"`` of the study config) blamed on ``flag``."""
+    text = str(error)
+    return MonitorError(f"{flag}: {text.removeprefix(f'{key}: ')}")
+
+
 def base_config(
     folder: Path,
     out: Path,
@@ -80,6 +98,11 @@ def base_config(
 ) -> StudyConfig:
     """The study config every campaign shares (``data``/``out`` set per campaign).
 
+    The arguments override ``monitor.toml``; a bad argument is refused naming its flag
+    (``--rig``, ``--parameters``, ``--budget``, ``--workers``/``--scheduler``), a bad
+    value of the file naming the file. A rig path given as an argument is relative to the
+    current folder, one in ``monitor.toml`` to the monitoring folder.
+
     Raises:
         MonitorError: a bad ``monitor.toml`` or argument.
     """
@@ -88,7 +111,7 @@ def base_config(
     if path.is_file():
         try:
             mapping = tomllib.loads(path.read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as error:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
             raise MonitorError(f"{path}: not valid TOML ({error})") from None
         for key in ("data", "out"):
             if key in mapping:
@@ -97,13 +120,26 @@ def base_config(
                     "monitoring folder and results go to --out"
                 )
     mapping.setdefault("rig", "hst_trailer")
-    if rig is not None:
-        mapping["rig"] = str(rig)
+    paths = {"data": ".", "out": str(out)}
+    if rig is not None:  # checked alone (relative to the current folder), then used as is
+        try:
+            mapping["rig"] = parse_study_config({"rig": str(rig), **paths}, Path.cwd()).rig
+        except (ValueError, TypeError) as error:
+            raise _flag_error("--rig", "rig", error) from None
     if parameters is not None:
+        try:  # the list alone (distinct names); the rig's calibration set is checked later
+            parse_study_config(
+                {"rig": "hst_trailer", "parameters": list(parameters), **paths}, folder
+            )
+        except (ValueError, TypeError) as error:
+            raise _flag_error("--parameters", "parameters", error) from None
         mapping["parameters"] = list(parameters)
     where = f"{path}: " if path.is_file() else ""
     try:
-        config = parse_study_config({**mapping, "data": ".", "out": str(out)}, folder)
+        config = parse_study_config({**mapping, **paths}, folder)
+    except (ValueError, TypeError) as error:
+        raise MonitorError(f"{where}{error}") from None
+    try:
         if budget is not None:
             config = dataclasses.replace(
                 config,
@@ -113,16 +149,20 @@ def base_config(
                     initial_design=min(config.budget.initial_design, budget),
                 ),
             )
-        if allow_small_budget:
-            config = dataclasses.replace(
-                config, budget=dataclasses.replace(config.budget, allow_small=True)
-            )
-        if workers is not None or scheduler is not None:
+    except (ValueError, TypeError) as error:
+        raise MonitorError(f"--budget: {error}") from None
+    if allow_small_budget:
+        config = dataclasses.replace(
+            config, budget=dataclasses.replace(config.budget, allow_small=True)
+        )
+    if workers is not None or scheduler is not None:
+        try:
             config = dataclasses.replace(
                 config, executor=ExecutorConfig(workers=workers, scheduler=scheduler)
             )
-    except (ValueError, TypeError) as error:
-        raise MonitorError(f"{where}{error}") from None
+        except (ValueError, TypeError) as error:
+            flag = "--workers" if scheduler is None else "--scheduler"
+            raise MonitorError(f"{flag}: {error}") from None
     return config
 
 
@@ -187,6 +227,8 @@ def monitor(
     Raises:
         MonitorError: bad folder, settings or campaign data — before any simulation.
     """
+    if not 0.0 < threshold < 1.0:  # also false for nan
+        raise MonitorError(f"threshold: got {threshold}; expected a probability in (0, 1)")
     folder, out = Path(folder).resolve(), Path(out).resolve()
     try:
         campaigns = discover_campaigns(folder)
@@ -202,25 +244,16 @@ def monitor(
         scheduler=scheduler,
         allow_small_budget=allow_small_budget,
     )
-    try:
-        spec = load_rig_spec(base.rig)
-        names = base.check_parameters(spec.calibration_names)
-    except (FileNotFoundError, ValueError) as error:
-        raise MonitorError(f"rig/parameters: {error}") from None
+    spec, names = _rig_and_names(base, folder, rig=rig, parameters=parameters)
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
     for campaign in campaigns:  # every input checked before the first simulation
-        config = configs[campaign.campaign_id]
-        state = status[campaign.campaign_id]
         try:
-            if state == "finished":
-                _check_finished(config, names)
-            else:
-                bounds[campaign.campaign_id] = prepare_study(
-                    config, resume=state == "interrupted"
-                ).bounds
-        except StudyError as error:
+            bounds[campaign.campaign_id] = check_campaign(
+                configs[campaign.campaign_id], campaign, status[campaign.campaign_id], names
+            )
+        except (StudyError, CampaignResultError) as error:
             raise MonitorError(
                 f"campaign {campaign.campaign_id} ({campaign.folder}): {error}"
             ) from None
@@ -275,15 +308,53 @@ def monitor(
     return payload
 
 
-def _check_finished(config: StudyConfig, names: Sequence[str]) -> None:
-    import json
+def _rig_and_names(
+    base: StudyConfig,
+    folder: Path,
+    *,
+    rig: str | None,
+    parameters: Sequence[str] | None,
+) -> tuple[Any, tuple[str, ...]]:
+    """The rig and the calibrated names; an error names the flag or file that gave them."""
+    path = folder / MONITOR_CONFIG_NAME
+    in_file = f"{path}: " if path.is_file() else ""
+    try:
+        spec = load_rig_spec(base.rig)
+    except (FileNotFoundError, ValueError) as error:
+        raise MonitorError(f"{'--rig: ' if rig is not None else in_file}{error}") from None
+    try:
+        names = base.check_parameters(spec.calibration_names)
+    except ValueError as error:
+        if parameters is not None:
+            raise _flag_error("--parameters", "parameters", error) from None
+        raise MonitorError(f"{in_file}{error}") from None
+    return spec, tuple(names)
 
-    result = json.loads((config.out / RESULT_NAME).read_text())
-    if list(result.get("parameters", [])) != list(names):
-        raise StudyError(
-            f"{config.out / RESULT_NAME} was calibrated for parameters {result.get('parameters')}, "
-            f"this run asks for {list(names)}; use another --out or remove that folder"
+
+def check_campaign(
+    config: StudyConfig, campaign: Campaign, state: str, names: Sequence[str]
+) -> np.ndarray:
+    """Check one campaign before any simulation; its (2 x q) C_w.
+
+    A new campaign: its inputs (:func:`prepare_study`). An interrupted one: also that its
+    store belongs to the runs, rig and output error of now. A finished one: its result and
+    draws are readable and of ``names``, and were computed on the runs now in its folder
+    (:func:`~susp_bo.monitoring.campaign_results.check_campaign_store`).
+
+    Raises:
+        StudyError: bad inputs of the campaign.
+        CampaignResultError: a stale or damaged results folder (nothing is changed).
+    """
+    if state == "finished":
+        read_finished(config.out, names)
+        # the budget plays no part in a finished result: only its data are compared
+        config = dataclasses.replace(
+            config, budget=dataclasses.replace(config.budget, allow_small=True)
         )
+    study = prepare_study(config, resume=(config.out / STORE_NAME).exists())
+    if state != "new":
+        check_campaign_store(study, finished=state == "finished", campaign_folder=campaign.folder)
+    return study.bounds
 
 
 def build_report(
@@ -295,8 +366,6 @@ def build_report(
     threshold: float = ALARM_THRESHOLD,
 ) -> dict[str, Any]:
     """The ``monitor.json`` payload from the campaigns' result folders."""
-    import json
-
     parameters = {c.name: c for c in spec.calibration if c.name in names}
     acceptable = {name: parameters[name].acceptable for name in names}
     records: list[CampaignRecord] = []
@@ -304,8 +373,7 @@ def build_report(
     for campaign in campaigns:
         cid = campaign.campaign_id
         folder = configs[cid].out
-        result = json.loads((folder / RESULT_NAME).read_text())
-        samples = np.load(folder / SAMPLES_NAME)
+        result, samples = read_finished(folder, names)
         trusted, why = trust(result)
         summaries = {
             name: summarise_parameter(name, samples[:, k], acceptable[name])

@@ -1,0 +1,168 @@
+"""A campaign's results folder is reused only when it still belongs to the campaign's runs
+and can be read: replaced runs, a missing store or damaged result files are refused with
+exit code 2 before any work, naming the folder and what to do, and nothing is changed."""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import susp_bo
+from susp_bo.cli import main
+
+pytestmark = pytest.mark.slow  # one real (tiny) calibration, shared by the module
+
+B = "TRAIN-1/2026-02-10"  # the campaign calibrated once by the fixture
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+def _simulations(out: Path) -> int:
+    db = sqlite3.connect(f"file:{out / B / 'evaluations.sqlite'}?mode=ro", uri=True)
+    try:
+        return int(db.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0])
+    finally:
+        db.close()
+
+
+@pytest.fixture(scope="module")
+def finished(
+    fast_rig: Path,
+    tmp_path_factory: pytest.TempPathFactory,
+    campaign_adder: Any,
+    monitor_config_writer: Any,
+) -> dict[str, Any]:
+    """One campaign (2 runs, 8 evaluations), monitored to the end."""
+    root = tmp_path_factory.mktemp("finished")
+    folder, out = root / "campaigns", root / "out"
+    campaign_adder(folder, fast_rig, "TRAIN-1", "2026-02-10", seed=2)
+    monitor_config_writer(folder, fast_rig)
+    susp_bo.monitor(folder, out, workers=0, progress=False, figures=False)
+    return {"folder": folder, "out": out, "rig": fast_rig, "adder": campaign_adder}
+
+
+@pytest.fixture
+def copy(finished: dict[str, Any], tmp_path: Path) -> dict[str, Any]:
+    """A private copy of the monitoring folder and its results."""
+    folder, out = tmp_path / "campaigns", tmp_path / "out"
+    shutil.copytree(finished["folder"], folder)
+    shutil.copytree(finished["out"], out)
+    return {**finished, "folder": folder, "out": out}
+
+
+def _monitor(copy: dict[str, Any]) -> int:
+    return main(["monitor", str(copy["folder"]), "--out", str(copy["out"]), "--workers", "0"])
+
+
+def _replace_runs(copy: dict[str, Any]) -> None:
+    """The campaign's runs replaced by other measurements (same vehicle, date, rig)."""
+    copy["adder"](copy["folder"], copy["rig"], "TRAIN-1", "2026-02-10", seed=7)
+
+
+def test_a_finished_campaign_whose_runs_were_replaced_is_refused_untouched(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    _replace_runs(copy)
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert f"campaign {B}" in err and str(copy["out"] / B) in err
+    assert "other measured runs" in err and "move or delete" in err and "Traceback" not in err
+    assert _files(copy["out"]) == before  # result, draws, store and monitor.json as they were
+
+
+def test_a_finished_campaign_without_its_store_cannot_be_checked_and_is_refused(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    (copy["out"] / B / "evaluations.sqlite").unlink()
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert "evaluations.sqlite is missing" in err and str(copy["out"] / B) in err
+    assert _files(copy["out"]) == before
+
+
+def test_a_result_of_another_version_is_reused_only_on_the_same_runs(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    db = sqlite3.connect(copy["out"] / B / "evaluations.sqlite")
+    with db:
+        db.execute("UPDATE study SET value = '0.0' WHERE key = 'package_version'")
+    db.close()
+    before = _files(copy["out"] / B)
+    assert _monitor(copy) == 0, capsys.readouterr().err
+    assert _files(copy["out"] / B) == before
+    _replace_runs(copy)
+    assert _monitor(copy) == 2
+    assert "other measured runs" in capsys.readouterr().err
+
+
+def test_an_interrupted_campaign_on_replaced_runs_is_refused_before_any_work(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Refused before the campaign before it (new work) is calibrated."""
+    for name in ("result.json", "posterior_samples.npy"):
+        (copy["out"] / B / name).unlink()
+    copy["adder"](copy["folder"], copy["rig"], "TRAIN-1", "2026-01-10", seed=1)
+    _replace_runs(copy)
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert "interrupted calibration was computed on other measured runs" in err
+    assert _files(copy["out"]) == before
+    assert not (copy["out"] / "TRAIN-1" / "2026-01-10").exists()
+
+
+def test_a_damaged_result_is_refused_and_recomputed_from_its_store(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The message says what to delete; doing so recomputes it without a simulation."""
+    folder = copy["out"] / B
+    draws = np.load(folder / "posterior_samples.npy")
+    simulations = _simulations(copy["out"])
+    (folder / "result.json").write_text("{broken")
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert f"{folder / 'result.json'}: not a readable result" in err
+    assert "(keep evaluations.sqlite)" in err and "Traceback" not in err
+    assert _files(copy["out"]) == before
+    for name in ("result.json", "posterior_samples.npy"):  # what the message says to do
+        (folder / name).unlink()
+    assert _monitor(copy) == 0, capsys.readouterr().err
+    assert _simulations(copy["out"]) == simulations
+    assert np.array_equal(np.load(folder / "posterior_samples.npy"), draws)
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (b"junk\n", "not a NumPy .npy file"),
+        ("pickled", "Object arrays cannot be loaded"),
+        (np.ones(5), "shape (5,), expected (n x 2) draws"),
+        (np.full((4, 2), np.nan), "non-finite"),
+    ],
+    ids=["junk", "pickled", "one-dimensional", "nan"],
+)
+def test_damaged_posterior_draws_are_refused(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str], content: Any, problem: str
+) -> None:
+    path = copy["out"] / B / "posterior_samples.npy"
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    elif isinstance(content, str):
+        np.save(path, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    else:
+        np.save(path, content)
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: " in err and problem in err and "Traceback" not in err
+    assert _files(copy["out"]) == before

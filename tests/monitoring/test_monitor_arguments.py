@@ -1,0 +1,98 @@
+"""``susp-bo monitor``'s arguments: a bad value is blamed on its flag (not on
+``monitor.toml``), a bad value of ``monitor.toml`` on the file; exit code 2, no work."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import susp_bo
+from susp_bo.cli import main
+from susp_bo.monitoring.runner import MonitorError, base_config
+
+
+@pytest.fixture(scope="module")
+def folder(
+    fast_rig: Path,
+    tmp_path_factory: pytest.TempPathFactory,
+    campaign_adder: Any,
+    monitor_config_writer: Any,
+) -> Path:
+    """A monitoring folder of one campaign with a ``monitor.toml``."""
+    root = tmp_path_factory.mktemp("arguments") / "campaigns"
+    campaign_adder(root, fast_rig, "TRAIN-1", "2026-01-10", seed=1)
+    monitor_config_writer(root, fast_rig)
+    return root
+
+
+def _refused(folder: Path, out: Path, capsys: pytest.CaptureFixture[str], *flags: str) -> str:
+    assert main(["monitor", str(folder), "--out", str(out), *flags]) == 2
+    assert not out.exists()
+    return capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("flags", "expected"),
+    [
+        (["--rig", "nosuchrig"], "susp-bo monitor: --rig: 'nosuchrig' is not allowed; shipped"),
+        (
+            ["--parameters", "yaw_damper_damping,yaw_damper_damping"],
+            "susp-bo monitor: --parameters: ['yaw_damper_damping', 'yaw_damper_damping'] is "
+            "not allowed; expected a non-empty list of distinct",
+        ),
+        (
+            ["--parameters", "nonexistent"],
+            "susp-bo monitor: --parameters: ['nonexistent'] not in the calibration set",
+        ),
+    ],
+)
+def test_a_bad_flag_is_named_not_the_file(
+    folder: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    flags: list[str],
+    expected: str,
+) -> None:
+    err = _refused(folder, tmp_path / "out", capsys, *flags)
+    assert expected in err and "monitor.toml" not in err
+
+
+def test_a_bad_value_of_monitor_toml_is_blamed_on_the_file(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    shutil.copytree(folder, tmp_path / "campaigns")
+    config = tmp_path / "campaigns" / "monitor.toml"
+    text = config.read_text()
+    config.write_text(text.replace('"yaw_damper_damping"', '"secondary_vertical_damping"'))
+    err = _refused(tmp_path / "campaigns", tmp_path / "out", capsys)
+    assert f"{config}: parameters: " in err and "--parameters" not in err
+
+
+def test_a_rig_path_on_the_command_line_is_relative_to_the_current_folder(
+    folder: Path, fast_rig: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Not to the monitoring folder (a monitor.toml's rig path is)."""
+    monkeypatch.chdir(fast_rig.parent)
+    config = base_config(folder, tmp_path / "out", rig=fast_rig.name)
+    assert Path(config.rig) == fast_rig.resolve()
+
+
+@pytest.mark.parametrize("value", ["-0.5", "nan", "0", "1", "2", "abc"])
+def test_the_threshold_is_a_probability(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], value: str
+) -> None:
+    err = _refused(folder, tmp_path / "out", capsys, f"--threshold={value}")
+    assert (
+        f"argument --threshold: {value!r} is not allowed; expected a probability in (0, 1)" in err
+    )
+
+
+def test_the_python_api_refuses_a_threshold_outside_0_1(folder: Path, tmp_path: Path) -> None:
+    with pytest.raises(
+        MonitorError, match=r"threshold: got 1.5; expected a probability in \(0, 1\)"
+    ):
+        susp_bo.monitor(folder, tmp_path / "out", threshold=1.5, progress=False)
+    assert not (tmp_path / "out").exists()
