@@ -64,17 +64,58 @@ from susp_bo.json_files import json_ready, write_json
 from susp_bo.output_folder import CONFIG_NAME, RESULT_NAME
 
 
-def _fit_from_result(study: Any, payload: dict[str, Any]) -> Any:
+def _result_vector(payload: dict[str, Any], key: str, study: Any, result_file: Path) -> Any:
+    """``payload[key]`` as (q,) float64: q finite numbers, inside C_w for the joint MAP,
+    positive for the posterior sd (absent sd: None).
+
+    Raises:
+        UsageError: naming the file, the key, the value and what is allowed.
+    """
+    bounds = np.asarray(study.bounds, dtype=np.float64)
+    q = bounds.shape[1]
+    value = payload.get(key)
+    if value is None and key == "posterior_sd":
+        return None
+    allowed = (
+        f"{q} finite numbers inside the admissible intervals of {list(study.names)}"
+        if key == "joint_map"
+        else f"{q} finite numbers > 0"
+    )
+    try:
+        vector = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        vector = np.full(0, np.nan)
+    good = vector.shape == (q,) and bool(np.all(np.isfinite(vector)))
+    if good and key == "joint_map":
+        good = bool(np.all((bounds[0] <= vector) & (vector <= bounds[1])))
+    if good and key == "posterior_sd":
+        good = bool(np.all(vector > 0))
+    if not good:
+        raise UsageError(
+            f"RESULT_DIR: {result_file}: {key} = {value!r} is not allowed; expected {allowed} "
+            "(as susp-bo calibrate writes it); recalibrate, or restore the file"
+        )
+    return vector
+
+
+def _fit_from_result(study: Any, payload: dict[str, Any], result_file: Path) -> Any:
+    """The base calibration's point and spread (from ``result.json``) as the workflow's Fit.
+
+    Raises:
+        UsageError: a joint MAP or posterior sd that is missing or malformed.
+    """
     from susp_bo.discrepancy.fitting import Fit
 
     bounds = np.asarray(study.bounds, dtype=np.float64)
     span = bounds[1] - bounds[0]
-    sd = np.asarray(payload.get("posterior_sd") or span * 0.01, dtype=np.float64)
+    w = _result_vector(payload, "joint_map", study, result_file)
+    sd = _result_vector(payload, "posterior_sd", study, result_file)
+    sd = span * 0.01 if sd is None else sd
     return Fit(
         spec=study.spec,
         names=tuple(study.names),
         bounds=bounds,
-        w=np.asarray(payload["joint_map"], dtype=np.float64),
+        w=w,
         log_likelihood=float(payload.get("best_log_likelihood") or np.nan),
         covariance_unit=np.diag((sd / span) ** 2),
         n_evaluations=0,
@@ -288,6 +329,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         simulator = make_simulator(kind)
     except (StudyError, ValueError, OSError) as error:
         raise UsageError(str(error)) from error
+    base_fit = _fit_from_result(study, payload, result_file)  # checked before --out is made
     out = output_folder(args.out)
     metadata = study.runs[0].metadata or {}
     truth = metadata.get("truth") if isinstance(metadata.get("truth"), dict) else None
@@ -317,7 +359,6 @@ def run_diagnose(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     fast = LinearSimulator() if kind == "pybullet" else simulator
-    base_fit = _fit_from_result(study, payload)
     recalibrate, verdicts = (
         _study_recalibration(study, out, budget, progress=True, base=base_fit)
         if kind == "pybullet"

@@ -146,6 +146,25 @@ def test_force_runs_the_workflow_but_the_answer_stays_not_trusted(
     assert "FORCED" in done.stderr
 
 
+@pytest.mark.parametrize(
+    "broken", [{"foo": 1}, {"joint_map": [-1.0e9, 1.0e30]}], ids=["no_joint_map", "outside_C_w"]
+)
+def test_force_on_a_result_without_a_usable_joint_map_is_refused(
+    uninterrupted: Path, tmp_path: Path, broken: dict
+) -> None:
+    """--force runs the workflow from the result's joint MAP: a missing one was a KeyError
+    traceback, one outside C_w a confident "named" verdict on nothing."""
+    result = _copy(uninterrupted, tmp_path)
+    payload = json.loads((result / "result.json").read_text())
+    payload.pop("joint_map")
+    (result / "result.json").write_text(json.dumps({**payload, **broken}))
+    done = _diagnose(result, tmp_path / "diagnosis", "--force", "--simulator", "linear")
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert "Traceback" not in done.stderr
+    assert "result.json: joint_map = " in done.stderr and "is not allowed" in done.stderr
+    assert not (tmp_path / "diagnosis").exists()
+
+
 # ---------------------------------------------------------------- consistent
 
 
