@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tempfile
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -38,23 +39,111 @@ def read_parameter_file(path: str | Path) -> dict[str, float]:
     return values
 
 
+_ALLOWED_FOLDER = "expected a folder that exists or can be created, and can be written in"
+
+
 def checked_output_folder(out: str | Path, label: str = "--out") -> Path:
-    """The output folder, checked (not created): refuses a path that is an existing file.
+    """The output folder, checked and left as it was: a folder that exists or can be
+    created, and that this process can write in.
+
+    An empty path is refused (it would write into the current folder). A folder that does
+    not exist yet is created to try it, then removed again, so a refusal later (a bad flag)
+    leaves nothing behind; an existing folder is tried with a temporary file.
 
     Raises:
-        UsageError: naming ``label``, the path and what is allowed.
+        UsageError: naming ``label``, the path, the reason and what is allowed.
     """
+    if not str(out):
+        raise UsageError(
+            f"{label}: {str(out)!r} is not allowed; expected the path of a folder (existing or "
+            "new; '.' for the current folder)"
+        )
     try:
-        return check_output_folder(out, label)
+        folder = check_output_folder(out, label)
+        _try_writing(folder, label)
     except ValueError as error:
         raise UsageError(str(error)) from None
+    except OSError as error:  # e.g. a name too long to look up
+        raise UsageError(
+            f"{label}: {str(out)!r} is not allowed ({_reason(error, out)}); {_ALLOWED_FOLDER}"
+        ) from None
+    return folder
+
+
+def _try_writing(folder: Path, label: str) -> None:
+    """Creates ``folder`` and removes it again, or writes a temporary file in it.
+
+    Raises:
+        UsageError: the folder cannot be created or written in (e.g. ``/proc/x``, a
+            read-only file system, no permission, a name too long).
+    """
+    if folder.is_dir():
+        try:
+            with tempfile.TemporaryFile(dir=folder, prefix=".susp_bo_write_check_"):
+                pass
+        except OSError as error:
+            raise UsageError(
+                f"{label}: {str(folder)!r} is not allowed; cannot write in it "
+                f"({error.strerror or error}); {_ALLOWED_FOLDER}"
+            ) from None
+        return
+    missing = [folder]
+    missing += [parent for parent in folder.parents if not parent.exists()]
+    try:
+        folder.mkdir(parents=True)
+    except OSError as error:
+        raise UsageError(
+            f"{label}: {str(folder)!r} is not allowed; cannot create it "
+            f"({_reason(error, folder)}); {_ALLOWED_FOLDER}"
+        ) from None
+    for created in missing:  # innermost first; one that another process filled stays
+        try:
+            created.rmdir()
+        except OSError:
+            break
+
+
+def _reason(error: OSError, folder: str | Path) -> str:
+    """``strerror`` of ``error``, with the path it is about when that is not ``folder``."""
+    reason = error.strerror or str(error)
+    if error.filename is None or str(error.filename) == str(folder):
+        return reason
+    return f"{reason}: {str(error.filename)!r}"
 
 
 def output_folder(out: str | Path, label: str = "--out") -> Path:
-    """Create (if needed) and return the output folder (checked first)."""
+    """Create (if needed) and return the output folder (checked first).
+
+    Raises:
+        UsageError: as :func:`checked_output_folder`, or the folder cannot be created.
+    """
     folder = checked_output_folder(out, label)
-    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise UsageError(
+            f"{label}: {str(folder)!r} is not allowed; cannot create it ({_reason(error, folder)})"
+        ) from None
     return folder
+
+
+def existing_runs(folder: Path, also: tuple[str, ...] = ()) -> list[Path]:
+    """The measured runs (``*.h5``, ``*.hdf5``, what ``calibrate`` reads) and the files named
+    ``also`` that ``folder`` already holds, sorted; empty for a folder that does not exist."""
+    if not folder.is_dir():
+        return []
+    return sorted(
+        path
+        for path in folder.iterdir()
+        if (path.suffix in {".h5", ".hdf5"} or path.name in also) and path.is_file()
+    )
+
+
+def listed(paths: list[Path], limit: int = 4) -> str:
+    """``a.h5, b.h5, c.h5 and 5 more``: file names for a message."""
+    names = [path.name for path in paths[:limit]]
+    more = f" and {len(paths) - limit} more" if len(paths) > limit else ""
+    return ", ".join(names) + more
 
 
 def read_line_file(path: str | Path | None, spec: object) -> object:
@@ -74,7 +163,10 @@ def read_line_file(path: str | Path | None, spec: object) -> object:
         design = load_line(path)
         design.check_covers(0.0, synthetic_track_length_m(spec), "the run (--speed, --duration)")
     except DesignError as error:
-        raise UsageError(f"--line: {error}") from error
+        message = str(error)  # some messages name the flag themselves
+        if not message.startswith("--line"):
+            message = f"--line: {message}"
+        raise UsageError(message) from error
     return design
 
 

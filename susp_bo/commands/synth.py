@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
+    existing_runs,
+    listed,
     out_of_range,
     output_folder,
     read_line_file,
@@ -19,6 +22,9 @@ from susp_bo.discrepancy.effects import with_effect
 from susp_bo.json_files import write_json
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.spec import load_rig_spec
+
+TRUTH_NAME = "truth.json"
+"""The file that records the truth, seed and effects of the runs ``synth`` wrote."""
 
 
 def parse_effect(text: str) -> tuple[str, dict[str, float]]:
@@ -35,11 +41,53 @@ def parse_effect(text: str) -> tuple[str, dict[str, float]]:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise UsageError(f"--effect: {item!r} in {text!r} is not k=v")
+        if key.strip() in values:
+            raise UsageError(
+                f"--effect: {text!r} is not allowed: it gives {key.strip()!r} twice; "
+                "expected each key once (NAME:k=v,...)"
+            )
         try:
             values[key.strip()] = float(value)
         except ValueError as error:
             raise UsageError(f"--effect: {key.strip()}={value!r} is not a number") from error
     return name.strip(), values
+
+
+def parse_effects(texts: list[str]) -> list[tuple[str, dict[str, float]]]:
+    """Every ``--effect`` (:func:`parse_effect`), each effect at most once.
+
+    Raises:
+        UsageError: a malformed effect, or one effect given twice.
+    """
+    effects = [parse_effect(text) for text in texts]
+    seen: dict[str, str] = {}
+    for text, (name, _) in zip(texts, effects):
+        if name in seen:
+            raise UsageError(
+                f"--effect: {text!r} is not allowed: effect {name!r} is already given "
+                f"({seen[name]!r}); expected each effect once, with all its values in one "
+                "--effect NAME:k=v,..."
+            )
+        seen[name] = text
+    return effects
+
+
+def refuse_existing_data(out: Path) -> None:
+    """Refuses an ``--out`` that already holds measured runs or a ``truth.json``.
+
+    New runs would replace some of them and join the others, and ``truth.json`` would
+    describe only the new ones: a mixed data set.
+
+    Raises:
+        UsageError: naming ``--out``, the folder, what it holds and what to do.
+    """
+    existing = existing_runs(out, also=(TRUTH_NAME,))
+    if existing:
+        raise UsageError(
+            f"--out: {out} already holds a data set ({listed(existing)}); choose another "
+            "folder, or delete those files first (synth never overwrites runs or adds runs "
+            "to another data set: truth.json describes the folder's runs)"
+        )
 
 
 def run_synth(args: argparse.Namespace) -> int:
@@ -49,8 +97,8 @@ def run_synth(args: argparse.Namespace) -> int:
     (:mod:`susp_bo.discrepancy.effects`); ``truth.json`` lists the effects with
     their values, the run metadata names them.
     """
-    effects = [parse_effect(text) for text in args.effect]
-    checked_output_folder(args.out)
+    effects = parse_effects(args.effect)
+    refuse_existing_data(checked_output_folder(args.out))
     try:
         spec = load_rig_spec(args.rig)
         truth = read_parameter_file(args.truth) if args.truth else {}
@@ -86,7 +134,7 @@ def run_synth(args: argparse.Namespace) -> int:
     for index, run in enumerate(runs):
         save_run(run, out / f"run_{index:03d}.h5")
     write_json(
-        out / "truth.json",
+        out / TRUTH_NAME,
         {
             "rig": spec.name,
             "truth": runs[0].metadata["truth"],

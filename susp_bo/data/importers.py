@@ -41,6 +41,8 @@ from __future__ import annotations
 import csv
 import json
 import os
+import struct
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +61,19 @@ from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 PathLike = str | os.PathLike[str]
 _GEOMETRY_COLUMNS = ("s_m", *GEOMETRY_COMPONENTS)
 _DESIGN_VARIABLES = tuple(f"design_{name}" for name in ("chainage_m", *DESIGN_COMPONENTS))
+_MAT_READ_ERRORS: tuple[type[Exception], ...] = (
+    scipy.io.matlab.MatReadError,  # e.g. "Mat file appears to be truncated" (empty, short)
+    OSError,
+    ValueError,
+    TypeError,
+    EOFError,
+    IndexError,  # a file cut inside a variable
+    KeyError,
+    struct.error,
+    zlib.error,
+)
+"""What ``scipy.io.loadmat`` raises on a file that is not a whole v4–v7 .mat file."""
+_MAT_EXPECTED = "expected a MATLAB v4-v7 .mat file (save(..., '-v7'))"
 
 
 def _design(path: Path, **fields: Any) -> TrackDesign:
@@ -319,6 +334,14 @@ def _mat_vector(path: Path, variables: dict[str, Any], name: str) -> np.ndarray:
     return value.astype(np.float64).ravel()
 
 
+def _file_size(path: Path) -> int | None:
+    """The size of ``path`` in bytes, or None when it cannot be read."""
+    try:
+        return path.stat().st_size
+    except OSError:
+        return None
+
+
 def read_mat_run(
     path: PathLike, *, metadata: dict[str, Any] | None = None, allow_nan: bool = False
 ) -> MeasuredRun:
@@ -335,8 +358,14 @@ def read_mat_run(
             f"{mat_path}: MATLAB v7.3 (HDF5) files are not read here; save with "
             "save(..., '-v7') or write the HDF5 measured-run format"
         ) from None
-    except (OSError, ValueError, TypeError, EOFError) as error:
-        raise MeasuredDataError(f"{mat_path}: not a readable .mat file ({error})") from None
+    except _MAT_READ_ERRORS as error:
+        size = _file_size(mat_path)
+        why = str(error) or type(error).__name__
+        if size is not None:
+            why = "an empty file" if size == 0 else f"{why}; the file has {size} bytes"
+        raise MeasuredDataError(
+            f"{mat_path}: not a readable .mat file ({why}); {_MAT_EXPECTED}"
+        ) from None
     if "channels" not in variables:
         raise MeasuredDataError(f"{mat_path}: missing variable 'channels'")
     channels = _mat_strings(mat_path, "channels", variables["channels"])

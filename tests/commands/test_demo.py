@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from susp_bo.commands.demo import DEMO_TRUTH
+from susp_bo.commands.demo import DEMO_RIG, DEMO_TRUTH, check_demo_folder, demo_runs_setting
+from susp_bo.rig.spec import load_rig_spec
 
 pytestmark = pytest.mark.slow
 
@@ -38,3 +39,17 @@ def test_demo_smoke_writes_a_result_with_the_truth_and_figures(tmp_path: Path) -
     for output in (done.stdout, done.stderr):
         assert "\x1b" not in output and "\r" not in output
         assert "argv[0]" not in output and "pybullet build time" not in output
+    # its runs are recognised: a rerun with the same flags continues on them (none to make),
+    # one with another seed is refused before any work and leaves the folder as it is
+    setting = demo_runs_setting(load_rig_spec(DEMO_RIG), smoke=True, seed=2024)
+    assert check_demo_folder(out, setting, smoke=True) == []
+    before = {path: path.read_bytes() for path in out.rglob("*") if path.is_file()}
+    again = subprocess.run(
+        [sys.executable, "-m", "susp_bo", "demo", "--smoke", "--seed", "7", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=300,
+    )
+    assert again.returncode == 2 and "seed 2024, the demo's 7" in again.stderr, again.stderr
+    assert {path: path.read_bytes() for path in out.rglob("*") if path.is_file()} == before

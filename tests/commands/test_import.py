@@ -209,3 +209,34 @@ def test_calibrate_on_a_csv_folder_says_how_to_import(
     code, err = _code_and_err(capsys, argv)
     assert code == 2
     assert "holds 3 .csv files" in err and "susp-bo import csv" in err
+
+
+@pytest.mark.parametrize(("content", "size"), [(b"", "an empty file"), (b"not a mat", "9 bytes")])
+def test_an_empty_or_truncated_mat_file_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: bytes, size: str
+) -> None:
+    good = tmp_path / "mat" / "good.mat"
+    good.parent.mkdir()
+    write_mat_run(_run(0), good)
+    bad = tmp_path / "mat" / "short.mat"
+    bad.write_bytes(content)
+    out = tmp_path / "h5"
+    code, err = _code_and_err(capsys, ["import", "mat", str(bad.parent), "--out", str(out)])
+    assert code == 2 and f"{bad}: not a readable .mat file (" in err and size in err, err
+    assert "expected a MATLAB v4-v7 .mat file" in err
+    assert not out.exists()  # the good run is not written either
+
+
+def test_an_out_that_is_empty_or_cannot_be_made_is_refused_before_reading(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _csv(tmp_path / "csv", "a", _run(0))
+    monkeypatch.chdir(tmp_path / "csv")  # --out "" would write a.h5 here
+    outs = ["", str(tmp_path / ("x" * 300))]
+    if Path("/proc/self").is_dir():
+        outs.append("/proc/susp_bo_no_such_folder")
+    for out in outs:
+        code, err = _code_and_err(capsys, ["import", "csv", ".", "--out", out])
+        assert code == 2 and f"susp-bo import: --out: {out!r} is not allowed" in err, err
+        assert "Errno" not in err
+        assert not (tmp_path / "csv" / "a.h5").exists()

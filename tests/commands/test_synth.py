@@ -86,3 +86,70 @@ def test_effect_text_is_parsed() -> None:
         {"frequency_hz": 9.0, "damping_ratio": 0.02},
     )
     assert parse_effect("bump_stop") == ("bump_stop", {})
+
+
+def test_an_out_holding_a_data_set_is_refused_before_simulating(
+    fast_rig: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "data"
+    assert main(["synth", str(fast_rig), "--out", str(out), "--nu", "2", "--seed", "1"]) == 0
+    before = {path.name: path.read_bytes() for path in out.iterdir()}
+    capsys.readouterr()
+    assert main(["synth", str(fast_rig), "--out", str(out), "--nu", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"--out: {out} already holds a data set (run_000.h5, run_001.h5, truth.json)" in err
+    assert "choose another folder" in err and "runs of" not in err  # refused before simulating
+    assert {path.name: path.read_bytes() for path in out.iterdir()} == before
+
+
+def _unusable_outs(tmp_path: Path) -> list[str]:
+    """An empty path, a name too long for the file system, and (on Linux) a folder that
+    cannot be made under /proc."""
+    outs = ["", str(tmp_path / ("x" * 300) / "out")]
+    if Path("/proc/self").is_dir():
+        outs.append("/proc/susp_bo_no_such_folder/out")
+    return outs
+
+
+@pytest.mark.parametrize("command", ["synth", "simulate"])
+def test_an_out_that_is_empty_or_cannot_be_made_is_refused_first(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    command: str,
+) -> None:
+    monkeypatch.chdir(tmp_path)  # --out "" would write here
+    for out in _unusable_outs(tmp_path):
+        assert main([command, "hst_trailer", "--out", out, "--seed", "1"]) == 2
+        err = capsys.readouterr().err
+        assert f"--out: {out!r} is not allowed" in err and "expected" in err, err
+        assert "Errno" not in err and f"susp-bo {command}: " in err
+        assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("effects", "needle"),
+    [
+        (["carbody_bending", "carbody_bending"], "effect 'carbody_bending' is already given"),
+        (["carbody_bending:frequency_hz=9,frequency_hz=10"], "gives 'frequency_hz' twice"),
+    ],
+)
+def test_an_effect_or_effect_value_given_twice_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], effects: list[str], needle: str
+) -> None:
+    flags = [part for effect in effects for part in ("--effect", effect)]
+    assert main(["synth", "hst_trailer", "--out", str(tmp_path / "d"), *flags]) == 2
+    err = capsys.readouterr().err
+    assert f"--effect: {effects[-1]!r} is not allowed" in err and needle in err, err
+    assert "expected each" in err
+    assert not (tmp_path / "d").exists()
+
+
+def test_a_missing_line_file_names_the_flag_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    missing = str(tmp_path / "nosuch.toml")
+    assert main(["synth", "hst_trailer", "--out", str(tmp_path / "d"), "--line", missing]) == 2
+    err = capsys.readouterr().err
+    assert f"susp-bo synth: --line: file {missing!r} does not exist" in err
+    assert err.count("--line") == 1

@@ -172,6 +172,30 @@ def test_mat_unreadable(tmp_path: Path) -> None:
         read_mat_run(path)
 
 
+@pytest.mark.parametrize(
+    ("content", "why"),
+    [(b"", r"an empty file"), (b"0123456789", r".*truncated; the file has 10 bytes")],
+)
+def test_empty_or_short_mat_is_named(tmp_path: Path, content: bytes, why: str) -> None:
+    path = tmp_path / "short.mat"
+    path.write_bytes(content)
+    with pytest.raises(MeasuredDataError, match=r"short\.mat: not a readable \.mat file \(" + why):
+        read_mat_run(path)
+
+
+def test_a_mat_file_cut_anywhere_is_refused_naming_it(
+    small_run: MeasuredRun, tmp_path: Path
+) -> None:
+    whole = tmp_path / "whole.mat"
+    write_mat_run(small_run, whole)
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.mat"
+    for length in range(0, len(data), max(1, len(data) // 97)):
+        cut.write_bytes(data[:length])
+        with pytest.raises(MeasuredDataError, match=r"cut\.mat: "):
+            read_mat_run(cut)
+
+
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(text=st.text(alphabet=st.sampled_from("0123456789.,-e\nabn_ [];#"), max_size=200))
 def test_random_csv_text_never_crashes(text: str) -> None:
