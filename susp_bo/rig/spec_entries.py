@@ -79,6 +79,13 @@ class CalibrationParameter:
             object.__setattr__(self, key, number)
         if not self.lower < self.upper:
             raise ValueError(f"{where}: lower {self.lower} must be < upper {self.upper}")
+        for key in ("lower", "upper"):  # C_w holds only values the simulator may be given
+            try:
+                check_parameter_value(self.name, getattr(self, key))
+            except ValueError as error:
+                raise ValueError(
+                    f"{where}.{key}: {error} (C_w may only hold physical values)"
+                ) from None
         if not self.lower <= self.reference <= self.upper:
             raise ValueError(
                 f"{where}.reference: got {self.reference}; must lie in [{self.lower}, {self.upper}]"
