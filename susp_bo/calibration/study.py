@@ -272,7 +272,13 @@ def run_study(
         executor = stack.enter_context(
             make_executor(workers=config.executor.workers, scheduler=config.executor.scheduler)
         )
-        out.mkdir(parents=True, exist_ok=True)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as error:  # e.g. under /proc, or no permission
+            raise StudyError(
+                f"out: {str(out)!r} cannot be created ({error.strerror or error}); expected a "
+                "folder that exists or can be created, and can be written in"
+            ) from None
         try:  # before anything is written: a refused resume leaves the folder as it was
             store = stack.enter_context(EvaluationStore(out / STORE_NAME, store_fingerprint(study)))
         except StoreMismatchError as error:

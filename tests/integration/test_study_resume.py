@@ -168,3 +168,14 @@ def test_an_unreachable_scheduler_leaves_no_results_folder(
     assert refused.returncode == 2, refused.stderr[-2000:]
     assert "scheduler 'tcp://127.0.0.1:9': cannot connect" in refused.stderr
     assert not out.exists()
+
+
+def test_an_out_that_cannot_be_created_is_named(
+    fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command
+) -> None:
+    if not Path("/proc/self").is_dir():
+        pytest.skip("needs Linux's /proc, where no folder can be created")
+    config = study_writer(tmp_path, fast_rig, fast_data, Path("/proc/susp_bo_out"), "workers = 0")
+    refused = calibrate_command(config)
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "out: '/proc/susp_bo_out' cannot be created" in refused.stderr
