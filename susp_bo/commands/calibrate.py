@@ -146,14 +146,15 @@ def _refuse_small_budget(config: StudyConfig, budget: int, design: int) -> None:
 
 
 def _is_study(path: Path) -> bool:
-    """A study file names its data; a rig file has a [rig] table."""
+    """A rig file has a [rig] table; any other .toml is read as a study file (so that a
+    study without its ``rig`` line is told ``rig: missing``, not how to call the command)."""
     import tomllib
 
     try:
         document = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError):
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return True  # let load_study_config report the problem
-    return "rig" in document and not isinstance(document.get("rig"), dict)
+    return not isinstance(document.get("rig"), dict)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:

@@ -41,6 +41,15 @@ def test_a_study_file_with_a_typo_is_refused(
     assert "did you mean 'max_evaluations'" in capsys.readouterr().err
 
 
+def test_a_study_file_without_its_rig_line_is_told_so(
+    data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    study = tmp_path / "study.toml"
+    study.write_text('data = "data"\nout = "out"\n[budget]\nmax_evaluations = 60\n')
+    assert main(["calibrate", str(study)]) == 2
+    assert "study.toml: rig: missing" in capsys.readouterr().err
+
+
 def test_an_unknown_calibration_parameter_is_refused(
     data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
