@@ -259,8 +259,20 @@ def parse_rig(data: Mapping[str, Any], source: str = "<dict>") -> RigSpec:
         source: file name used in error messages.
 
     Raises:
-        ValueError: unknown sections or keys, missing tables, invalid values.
+        ValueError: unknown sections or keys, missing tables, invalid values; every
+            message starts with ``source`` (the entries check themselves and do not know
+            their file, so a message of theirs gets it here).
     """
+    try:
+        return _build_rig(data, source)
+    except ValueError as error:
+        if str(error).startswith(f"{source}:"):
+            raise
+        raise ValueError(f"{source}: {error}") from None
+
+
+def _build_rig(data: Mapping[str, Any], source: str) -> RigSpec:
+    """:func:`parse_rig`'s work (its messages name ``source`` where they can)."""
     from susp_bo.rig.spectra import SpectrumSettings
 
     check_rig_keys(data, source)

@@ -59,11 +59,11 @@ class SpectrumSettings:
     def __post_init__(self) -> None:
         for name, unit in (("f_min_hz", "Hz"), ("f_max_hz", "Hz"), ("segment_s", "s")):
             object.__setattr__(
-                self, name, require_positive(f"SpectrumSettings.{name}", getattr(self, name), unit)
+                self, name, require_positive(f"[spectrum] {name}", getattr(self, name), unit)
             )
         if self.f_max_hz <= self.f_min_hz:
             raise ValueError(
-                f"SpectrumSettings.f_max_hz: got {self.f_max_hz} Hz; must be > f_min_hz = "
+                f"[spectrum] f_max_hz: got {self.f_max_hz} Hz; must be > f_min_hz = "
                 f"{self.f_min_hz} Hz"
             )
         if (
@@ -72,17 +72,17 @@ class SpectrumSettings:
             or self.n_frequencies < 1
         ):
             raise ValueError(
-                f"SpectrumSettings.n_frequencies: got {self.n_frequencies!r}; must be an int >= 1"
+                f"[spectrum] n_frequencies: got {self.n_frequencies!r}; must be an int >= 1"
             )
         object.__setattr__(self, "n_frequencies", int(self.n_frequencies))
         overlap = float(self.overlap)
         if not (0.0 <= overlap < 1.0):
-            raise ValueError(f"SpectrumSettings.overlap: got {self.overlap!r}; must be in [0, 1)")
+            raise ValueError(f"[spectrum] overlap: got {self.overlap!r}; must be in [0, 1)")
         object.__setattr__(self, "overlap", overlap)
         lowest = 2.0 / self.segment_s
         if self.f_min_hz < lowest * (1 - 1e-12):
             raise ValueError(
-                f"SpectrumSettings.f_min_hz: got {self.f_min_hz} Hz; must be >= 2 / segment_s = "
+                f"[spectrum] f_min_hz: got {self.f_min_hz} Hz; must be >= 2 / segment_s = "
                 f"{lowest:g} Hz (Welch resolution); raise f_min_hz or lengthen segment_s to >= "
                 f"{2.0 / self.f_min_hz:g} s"
             )

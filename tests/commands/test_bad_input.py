@@ -209,6 +209,27 @@ def test_rig_that_is_not_toml_names_file_and_line(
     _refused(capsys, ["simulate", str(rig), "--out", str(tmp_path / "o")], "broken.toml", "line 3")
 
 
+@pytest.mark.parametrize(
+    ("section", "change", "needle"),
+    [
+        ("carbody", {"mass": -1.0}, "parameter carbody_mass: got -1.0; must be > 0"),
+        ("simulation", {"time_step_s": 0.0}, "[simulation] time_step_s: got 0;"),
+        ("spectrum", {"f_min_hz": 30.0}, "[spectrum] f_max_hz: got"),
+    ],
+    ids=["negative-mass", "zero-step", "band"],
+)
+def test_a_bad_rig_value_names_the_rig_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], section: str, change: dict, needle: str
+) -> None:
+    # the entries check themselves without knowing their file; the loader adds it
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    document[section].update(change)
+    rig = tmp_path / "edited_rig.toml"
+    rig.write_text(tomli_w.dumps(document))
+    err = _refused(capsys, ["simulate", str(rig), "--out", str(tmp_path / "o")], needle)
+    assert f"{rig}: " in err
+
+
 # --- measured runs of another rig, resume on another study --------------------------------------
 
 
