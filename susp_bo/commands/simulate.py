@@ -42,8 +42,15 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
     try:
         spec.spectrum.check_sample_rate(spec.simulation.sample_rate_hz, spec.simulation.duration_s)
     except ValueError as error:
-        raise UsageError(
-            f"--duration: {spec.simulation.duration_s:g} s is too short ({error})"
+        too_short = str(error).startswith("duration_s")
+        if too_short and getattr(args, "duration", None) is not None:
+            raise UsageError(
+                f"--duration: {spec.simulation.duration_s:g} s is too short ({error})"
+            ) from None
+        remedy = "edit the rig file, or give a longer --duration" if too_short else "edit it"
+        raise UsageError(  # the rig file's own [simulation] and [spectrum] disagree
+            f"{args.rig}: its [simulation] and [spectrum] settings do not fit together "
+            f"({error}); {remedy}"
         ) from None
     parameters = read_parameter_file(args.params) if args.params else {}
     checked_output_folder(args.out)

@@ -230,6 +230,22 @@ def test_a_bad_rig_value_names_the_rig_file(
     assert f"{rig}: " in err
 
 
+def test_a_rig_whose_own_sampling_and_band_disagree_is_blamed_not_duration(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    document["simulation"]["sample_rate_hz"] = 10.0  # Nyquist 5 Hz, below the band's f_max
+    rig = tmp_path / "slow_sampling.toml"
+    rig.write_text(tomli_w.dumps(document))
+    err = _refused(
+        capsys,
+        ["simulate", str(rig), "--out", str(tmp_path / "o")],
+        f"{rig}: its [simulation] and [spectrum] settings do not fit together",
+        "sample_rate_hz: got 10 Hz",
+    )
+    assert "--duration" not in err
+
+
 # --- measured runs of another rig, resume on another study --------------------------------------
 
 
