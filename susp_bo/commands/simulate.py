@@ -11,6 +11,7 @@ import numpy as np
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
+    listed,
     out_of_range,
     output_folder,
     read_line_file,
@@ -61,11 +62,31 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
     return spec, parameters
 
 
+SIMULATE_FILES = ("signals.npz", "spectra.json", "simulate.png")
+"""What ``simulate`` writes into ``--out``."""
+
+
+def refuse_earlier_run(out: str | Path) -> None:
+    """Refuses an ``--out`` that holds an earlier ``simulate`` run's files (never replaced).
+
+    Raises:
+        UsageError: naming ``--out``, the folder, the files and what to do.
+    """
+    folder = Path(out)
+    earlier = [folder / name for name in SIMULATE_FILES if (folder / name).exists()]
+    if earlier:
+        raise UsageError(
+            f"--out: {folder} already holds a simulate run ({listed(earlier)}); choose another "
+            "folder, or delete those files first (a run's files are never replaced)"
+        )
+
+
 def run_simulate(args: argparse.Namespace) -> int:
     """Simulate the rig once and write ``signals.npz``, ``spectra.json`` and ``simulate.png``."""
     from susp_bo.response_plots import plot_response
 
     spec, _ = prepared_spec(args)
+    refuse_earlier_run(args.out)
     design = read_line_file(getattr(args, "line", None), spec)
     out = output_folder(args.out)
     settings = spec.simulation

@@ -43,6 +43,12 @@ def test_simulate_writes_signals_spectra_and_a_figure(
     assert values.shape == (len(spectra["channels"]), len(spectra["frequencies_hz"]))
     assert np.all(np.isfinite(values))
     assert (out / "simulate.png").stat().st_size > 10_000
+    # a second run into the same folder is refused, the first run's files kept as they were
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+    assert main(["simulate", "hst_trailer", "--out", str(out), "--seed", "4"]) == 2
+    assert "already holds a simulate run (signals.npz, spectra.json" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
 @pytest.mark.parametrize(
