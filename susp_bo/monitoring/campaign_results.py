@@ -20,6 +20,7 @@ version keys) and only a resume needs the version to match.
 from __future__ import annotations
 
 import json
+import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -141,9 +142,14 @@ def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folde
         )
     try:
         EvaluationStore(store, store_fingerprint(study)).close()
-    except StoreMismatchError as error:
-        if finished and error.key in VERSION_KEYS:  # "data" was compared first and matched
-            return
+    except StoreMismatchError as first:
+        error = first
+        if finished and error.key in VERSION_KEYS:
+            # the store stops at the first key that differs: compare every other key too
+            other = _data_mismatch(store, store_fingerprint(study))
+            if other is None:
+                return
+            error = first if other.key == "" else other
         if error.key == "data":
             raise CampaignResultError(
                 f"{out}: its {what} was computed on other measured runs than the "
@@ -157,6 +163,30 @@ def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folde
             f"{_short(error.stored)!r}, now {_short(error.current)!r}), so it is not reused. "
             f"{action}; to keep it, run with the settings it was computed with"
         ) from None
+
+
+def _data_mismatch(store: Path, current: dict[str, str]) -> StoreMismatchError | None:
+    """The first key other than the version keys whose stored value differs, or None.
+
+    A finished campaign's store was closed cleanly (its WAL folded into the file), so it
+    is read as an immutable file: no lock, no ``-wal``/``-shm`` file made. Unreadable that
+    way: a mismatch with an empty key (the caller keeps the version's).
+    """
+    try:
+        db = sqlite3.connect(f"{store.resolve().as_uri()}?immutable=1", uri=True)
+        try:
+            stored = dict(db.execute("SELECT key, value FROM study").fetchall())
+        finally:
+            db.close()
+    except sqlite3.DatabaseError:
+        stored = {}
+    if not stored:
+        return StoreMismatchError("the stored fingerprint cannot be read")
+    for key in sorted((set(stored) | set(current)) - VERSION_KEYS):
+        old, new = stored.get(key, "(absent)"), str(current.get(key, "(absent)"))
+        if old != new:
+            return StoreMismatchError(f"{key} differs", key=key, stored=old, current=new)
+    return None
 
 
 def _short(text: str, limit: int = 60) -> str:

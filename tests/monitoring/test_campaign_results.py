@@ -104,6 +104,22 @@ def test_a_result_of_another_version_is_reused_only_on_the_same_runs(
     assert "other measured runs" in capsys.readouterr().err
 
 
+def test_a_result_of_another_version_and_another_rig_is_refused(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The store stops at the first key that differs (the version, sorted before 'rig'):
+    a finished result of another version is compared on every other key too."""
+    db = sqlite3.connect(copy["out"] / B / "evaluations.sqlite")
+    with db:
+        db.execute("UPDATE study SET value = '0.0' WHERE key = 'package_version'")
+        db.execute("UPDATE study SET value = 'another-rig-sha' WHERE key = 'rig'")
+    db.close()
+    before = _files(copy["out"] / B)
+    assert _monitor(copy) == 2
+    assert "another rig" in capsys.readouterr().err
+    assert _files(copy["out"] / B) == before
+
+
 def test_an_interrupted_campaign_on_replaced_runs_is_refused_before_any_work(
     copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
