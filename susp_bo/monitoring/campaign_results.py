@@ -29,7 +29,7 @@ import numpy as np
 
 from susp_bo.calibration.study_preparation import STORE_NAME, PreparedStudy, store_fingerprint
 from susp_bo.output_folder import RESULT_NAME, SAMPLES_NAME
-from susp_bo.store import EvaluationStore, StoreMismatchError
+from susp_bo.store import EvaluationStore, StoreFileError, StoreMismatchError
 
 _NPY_MAGIC = b"\x93NUMPY"
 VERSION_KEYS = frozenset({"package_version", "store_schema_version"})
@@ -124,8 +124,9 @@ def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folde
 
     Raises:
         CampaignResultError: no store beside a finished result (its data cannot be
-            checked), or a store made for other runs, another rig or output error (or, for
-            an interrupted campaign, by another version).
+            checked), a store that is not readable, or a store made for other runs,
+            another rig or output error (or, for an interrupted campaign, by another
+            version).
     """
     out = study.config.out
     store = out / STORE_NAME
@@ -142,6 +143,11 @@ def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folde
         )
     try:
         EvaluationStore(store, store_fingerprint(study)).close()
+    except StoreFileError as error:
+        raise CampaignResultError(
+            f"{error}, so its {what} is not reused. Nothing was changed: move {store} away "
+            f"to calibrate the runs in {campaign_folder} afresh (or give another --out)"
+        ) from None
     except StoreMismatchError as first:
         error = first
         if finished and error.key in VERSION_KEYS:

@@ -120,6 +120,17 @@ def test_a_result_of_another_version_and_another_rig_is_refused(
     assert _files(copy["out"] / B) == before
 
 
+def test_a_damaged_store_is_named_with_its_campaign(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    store = copy["out"] / B / "evaluations.sqlite"
+    store.write_bytes(b"not a database, a note about dampers\n" * 100)
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert f"campaign {B} (" in err and f"{store}: not a readable evaluation store" in err
+    assert "Traceback" not in err and store.read_bytes().startswith(b"not a database")
+
+
 def test_an_interrupted_campaign_on_replaced_runs_is_refused_before_any_work(
     copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
