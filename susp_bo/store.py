@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sqlite3
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -200,6 +200,36 @@ def files_fingerprint(paths: list[Path] | tuple[Path, ...]) -> str:
     return digest.hexdigest()
 
 
+def fingerprint_difference(
+    stored: Mapping[str, str], current: Mapping[str, str], skip: Iterable[str] = ()
+) -> tuple[str, str, str] | None:
+    """The first key, in sorted order and not in ``skip``, whose value differs between two
+    fingerprints: (key, stored value, current value), ``"(absent)"`` for a missing one;
+    None when they agree."""
+    for name in sorted((set(stored) | set(current)) - set(skip)):
+        old, new = stored.get(name, "(absent)"), str(current.get(name, "(absent)"))
+        if old != new:
+            return name, old, new
+    return None
+
+
+def stored_fingerprint(path: str | Path) -> dict[str, str] | None:
+    """The fingerprint recorded in a store closed cleanly, read without changing the file.
+
+    Read as an immutable file (no lock, no ``-wal``/``-shm`` file made), so what is still
+    in a WAL (a store whose writer was killed) is not seen. None when it cannot be read.
+    """
+    try:
+        db = sqlite3.connect(f"{Path(path).resolve().as_uri()}?immutable=1", uri=True)
+        try:
+            stored = dict(db.execute("SELECT key, value FROM study").fetchall())
+        finally:
+            db.close()
+    except sqlite3.DatabaseError:
+        return None
+    return stored or None
+
+
 def _major_minor(version: str) -> str:
     return ".".join(version.split(".")[:2])
 
@@ -277,17 +307,17 @@ class EvaluationStore:
         self._check_fingerprint(stored)
 
     def _check_fingerprint(self, stored: dict[str, str]) -> None:
-        for name in sorted(set(stored) | set(self.fingerprint)):
-            old, new = stored.get(name, "(absent)"), self.fingerprint.get(name, "(absent)")
-            if old != new:
-                raise StoreMismatchError(
-                    f"{self.path}: store was made for another study: {name!r} is {old!r} in the "
-                    f"store but {new!r} now; use a new results folder, or the same "
-                    f"{name} as the stored study",
-                    key=name,
-                    stored=old,
-                    current=new,
-                )
+        difference = fingerprint_difference(stored, self.fingerprint)
+        if difference is not None:
+            name, old, new = difference
+            raise StoreMismatchError(
+                f"{self.path}: store was made for another study: {name!r} is {old!r} in the "
+                f"store but {new!r} now; use a new results folder, or the same "
+                f"{name} as the stored study",
+                key=name,
+                stored=old,
+                current=new,
+            )
 
     def _transaction(self) -> _Transaction:
         return _Transaction(self._db)

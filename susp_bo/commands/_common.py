@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from susp_bo.cli import UsageError
+from susp_bo.data.measured import run_paths
 from susp_bo.output_folder import check_output_folder
 from susp_bo.rig.spec import SIMULATION_LIMITS
 
@@ -130,13 +131,8 @@ def output_folder(out: str | Path, label: str = "--out") -> Path:
 def existing_runs(folder: Path, also: tuple[str, ...] = ()) -> list[Path]:
     """The measured runs (``*.h5``, ``*.hdf5``, what ``calibrate`` reads) and the files named
     ``also`` that ``folder`` already holds, sorted; empty for a folder that does not exist."""
-    if not folder.is_dir():
-        return []
-    return sorted(
-        path
-        for path in folder.iterdir()
-        if (path.suffix in {".h5", ".hdf5"} or path.name in also) and path.is_file()
-    )
+    named = [folder / name for name in also if (folder / name).is_file()]
+    return sorted([*run_paths(folder), *named])
 
 
 def listed(paths: list[Path], limit: int = 4) -> str:

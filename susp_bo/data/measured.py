@@ -424,6 +424,19 @@ def load_run(path: str | os.PathLike[str], *, allow_nan: bool = False) -> Measur
     return read_run_file(Path(path), allow_nan=allow_nan)
 
 
+RUN_SUFFIXES = frozenset({".h5", ".hdf5"})
+"""Extensions of a measured-run file."""
+
+
+def run_paths(folder: str | os.PathLike[str]) -> list[Path]:
+    """The measured-run files (``*.h5``, ``*.hdf5``) directly in ``folder``, sorted by name;
+    empty for a folder that does not exist."""
+    directory = Path(folder)
+    if not directory.is_dir():
+        return []
+    return sorted(p for p in directory.iterdir() if p.suffix in RUN_SUFFIXES and p.is_file())
+
+
 def load_runs(
     folder: str | os.PathLike[str],
     channels: Sequence[str] | None = None,
@@ -444,7 +457,7 @@ def load_runs(
     directory = Path(folder)
     if not directory.is_dir():
         raise MeasuredDataError(f"{directory}: not a folder of measured runs")
-    paths = sorted(p for p in directory.iterdir() if p.suffix in {".h5", ".hdf5"} and p.is_file())
+    paths = run_paths(directory)
     if not paths:
         raise MeasuredDataError(f"{directory}: holds no measured runs (*.h5, *.hdf5)")
     runs = [load_run(p, allow_nan=allow_nan) for p in paths]

@@ -20,7 +20,6 @@ version keys) and only a resume needs the version to match.
 from __future__ import annotations
 
 import json
-import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -29,7 +28,13 @@ import numpy as np
 
 from susp_bo.calibration.study_preparation import STORE_NAME, PreparedStudy, store_fingerprint
 from susp_bo.output_folder import RESULT_NAME, SAMPLES_NAME
-from susp_bo.store import EvaluationStore, StoreFileError, StoreMismatchError
+from susp_bo.store import (
+    EvaluationStore,
+    StoreFileError,
+    StoreMismatchError,
+    fingerprint_difference,
+    stored_fingerprint,
+)
 
 _NPY_MAGIC = b"\x93NUMPY"
 VERSION_KEYS = frozenset({"package_version", "store_schema_version"})
@@ -148,51 +153,28 @@ def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folde
             f"{error}, so its {what} is not reused. Nothing was changed: move {store} away "
             f"to calibrate the runs in {campaign_folder} afresh (or give another --out)"
         ) from None
-    except StoreMismatchError as first:
-        error = first
-        if finished and error.key in VERSION_KEYS:
+    except StoreMismatchError as error:
+        key, old, new = error.key, error.stored, error.current
+        stored = stored_fingerprint(store) if finished and key in VERSION_KEYS else None
+        if stored is not None:
             # the store stops at the first key that differs: compare every other key too
-            other = _data_mismatch(store, store_fingerprint(study))
+            other = fingerprint_difference(stored, store_fingerprint(study), skip=VERSION_KEYS)
             if other is None:
                 return
-            error = first if other.key == "" else other
-        if error.key == "data":
+            key, old, new = other
+        if key == "data":
             raise CampaignResultError(
                 f"{out}: its {what} was computed on other measured runs than the "
                 f"{len(study.runs)} now in {campaign_folder} (runs replaced, added, removed "
                 f"or edited since), so it is not reused. {action}; to keep it, put the "
                 "original runs back"
             ) from None
-        differs = _WHAT.get(error.key, f"another {error.key!r}")
+        differs = _WHAT.get(key, f"another {key!r}")
         raise CampaignResultError(
-            f"{out}: its {what} was computed with {differs} ({error.key}: stored "
-            f"{_short(error.stored)!r}, now {_short(error.current)!r}), so it is not reused. "
+            f"{out}: its {what} was computed with {differs} ({key}: stored "
+            f"{_short(old)!r}, now {_short(new)!r}), so it is not reused. "
             f"{action}; to keep it, run with the settings it was computed with"
         ) from None
-
-
-def _data_mismatch(store: Path, current: dict[str, str]) -> StoreMismatchError | None:
-    """The first key other than the version keys whose stored value differs, or None.
-
-    A finished campaign's store was closed cleanly (its WAL folded into the file), so it
-    is read as an immutable file: no lock, no ``-wal``/``-shm`` file made. Unreadable that
-    way: a mismatch with an empty key (the caller keeps the version's).
-    """
-    try:
-        db = sqlite3.connect(f"{store.resolve().as_uri()}?immutable=1", uri=True)
-        try:
-            stored = dict(db.execute("SELECT key, value FROM study").fetchall())
-        finally:
-            db.close()
-    except sqlite3.DatabaseError:
-        stored = {}
-    if not stored:
-        return StoreMismatchError("the stored fingerprint cannot be read")
-    for key in sorted((set(stored) | set(current)) - VERSION_KEYS):
-        old, new = stored.get(key, "(absent)"), str(current.get(key, "(absent)"))
-        if old != new:
-            return StoreMismatchError(f"{key} differs", key=key, stored=old, current=new)
-    return None
 
 
 def _short(text: str, limit: int = 60) -> str:

@@ -30,10 +30,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from susp_bo.data.measured import MeasuredDataError, load_run
+from susp_bo.data.measured import RUN_SUFFIXES, MeasuredDataError, load_run, run_paths
 
 MANIFEST_NAME = "campaign.toml"
-RUN_SUFFIXES = frozenset({".h5", ".hdf5"})
 _MANIFEST_KEYS = ("vehicle", "date", "line")
 
 
@@ -103,10 +102,6 @@ def parse_date(value: object, where: str) -> dt.date:
     raise CampaignError(f"{where}: date {value!r} is not a date; expected YYYY-MM-DD")
 
 
-def _run_paths(folder: Path) -> list[Path]:
-    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix in RUN_SUFFIXES)
-
-
 def _manifest(folder: Path) -> dict[str, Any] | None:
     path = folder / MANIFEST_NAME
     if not path.is_file():
@@ -151,7 +146,7 @@ def read_campaign(folder: str | Path) -> Campaign:
             disagreeing runs, or a manifest that contradicts the runs.
     """
     folder = Path(folder)
-    paths = _run_paths(folder)
+    paths = run_paths(folder)
     if not paths:
         raise CampaignError(f"{folder}: holds no measured runs (*.h5, *.hdf5)")
     metadata: dict[Path, Mapping[str, Any]] = {}
