@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import json
 import sqlite3
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -43,6 +43,7 @@ from typing import Literal
 import numpy as np
 
 from susp_bo import __version__
+from susp_bo.store_fingerprint import fingerprint_difference
 
 STORE_SCHEMA_VERSION = "1"
 """Bumped whenever the tables change incompatibly; part of every fingerprint."""
@@ -162,74 +163,6 @@ def evaluation_key(parameters: np.ndarray | list[float], track_id: str) -> str:
     return digest.hexdigest()
 
 
-def study_fingerprint(
-    rig: str, data: str, parameter_names: tuple[str, ...] | list[str], **extra: str
-) -> dict[str, str]:
-    """The fingerprint of a study, as :class:`EvaluationStore` expects it.
-
-    Args:
-        rig: the rig's fingerprint (``RigSpec.fingerprint()``).
-        data: the measured data's fingerprint (e.g. :func:`files_fingerprint`).
-        parameter_names: calibration parameter names, in calibration order.
-        **extra: anything else that changes simulator output (speed, duration…).
-
-    Returns:
-        Mapping of fingerprint keys to strings.
-    """
-    return {
-        "rig": rig,
-        "data": data,
-        "parameter_names": json.dumps(list(parameter_names)),
-        **{name: str(value) for name, value in extra.items()},
-    }
-
-
-def files_fingerprint(paths: list[Path] | tuple[Path, ...]) -> str:
-    """sha256 over the names and bytes of files, in sorted name order.
-
-    Args:
-        paths: files (for a folder of runs: ``sorted(folder.glob("*.h5"))``).
-
-    Returns:
-        64 hex characters.
-    """
-    digest = hashlib.sha256()
-    for path in sorted(Path(p) for p in paths):
-        digest.update(path.name.encode("utf-8") + b"\x00")
-        digest.update(hashlib.sha256(path.read_bytes()).digest())
-    return digest.hexdigest()
-
-
-def fingerprint_difference(
-    stored: Mapping[str, str], current: Mapping[str, str], skip: Iterable[str] = ()
-) -> tuple[str, str, str] | None:
-    """The first key, in sorted order and not in ``skip``, whose value differs between two
-    fingerprints: (key, stored value, current value), ``"(absent)"`` for a missing one;
-    None when they agree."""
-    for name in sorted((set(stored) | set(current)) - set(skip)):
-        old, new = stored.get(name, "(absent)"), str(current.get(name, "(absent)"))
-        if old != new:
-            return name, old, new
-    return None
-
-
-def stored_fingerprint(path: str | Path) -> dict[str, str] | None:
-    """The fingerprint recorded in a store closed cleanly, read without changing the file.
-
-    Read as an immutable file (no lock, no ``-wal``/``-shm`` file made), so what is still
-    in a WAL (a store whose writer was killed) is not seen. None when it cannot be read.
-    """
-    try:
-        db = sqlite3.connect(f"{Path(path).resolve().as_uri()}?immutable=1", uri=True)
-        try:
-            stored = dict(db.execute("SELECT key, value FROM study").fetchall())
-        finally:
-            db.close()
-    except sqlite3.DatabaseError:
-        return None
-    return stored or None
-
-
 def _major_minor(version: str) -> str:
     return ".".join(version.split(".")[:2])
 
@@ -243,9 +176,9 @@ class EvaluationStore:
 
     Args:
         path: the ``.sqlite`` file; created (with its folder) when absent.
-        fingerprint: what identifies the study (see :func:`study_fingerprint`);
-            the store adds ``store_schema_version`` and ``package_version``
-            (major.minor) itself.
+        fingerprint: what identifies the study (see
+            :func:`susp_bo.store_fingerprint.study_fingerprint`); the store adds
+            ``store_schema_version`` and ``package_version`` (major.minor) itself.
         code_version: version string written on every row.
 
     Raises:

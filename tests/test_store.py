@@ -23,9 +23,8 @@ from susp_bo.store import (
     StoreFileError,
     StoreMismatchError,
     evaluation_key,
-    files_fingerprint,
-    study_fingerprint,
 )
+from susp_bo.store_fingerprint import study_fingerprint
 
 FINGERPRINT = study_fingerprint("rig-sha-1", "data-sha-1", ("primary_stiffness", "damping"))
 
@@ -179,20 +178,11 @@ def test_bad_records_are_refused(tmp_path: Path) -> None:
         assert store.count() == 0
 
 
-def test_files_fingerprint_follows_names_and_bytes(tmp_path: Path) -> None:
-    a, b = tmp_path / "run-a.h5", tmp_path / "run-b.h5"
-    a.write_bytes(b"\x00\x01")
-    b.write_bytes(b"\x02")
-    first = files_fingerprint([a, b])
-    assert files_fingerprint([b, a]) == first
-    b.write_bytes(b"\x03")
-    assert files_fingerprint([a, b]) != first
-
-
 _WRITER = """
 import sys
 import numpy as np
-from susp_bo.store import EvaluationStore, study_fingerprint
+from susp_bo.store import EvaluationStore
+from susp_bo.store_fingerprint import study_fingerprint
 
 fingerprint = study_fingerprint("rig-sha-1", "data-sha-1", ("a", "b"))
 with EvaluationStore(sys.argv[1], fingerprint) as store:

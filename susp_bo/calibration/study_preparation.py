@@ -34,7 +34,7 @@ from susp_bo.data.run_validation import validate_run
 from susp_bo.output_folder import RESULT_NAME, check_output_folder
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
-from susp_bo.store import study_fingerprint
+from susp_bo.store_fingerprint import study_fingerprint
 from susp_bo.study_config import StudyConfig
 
 STORE_NAME = "evaluations.sqlite"

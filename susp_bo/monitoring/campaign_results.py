@@ -28,13 +28,8 @@ import numpy as np
 
 from susp_bo.calibration.study_preparation import STORE_NAME, PreparedStudy, store_fingerprint
 from susp_bo.output_folder import RESULT_NAME, SAMPLES_NAME
-from susp_bo.store import (
-    EvaluationStore,
-    StoreFileError,
-    StoreMismatchError,
-    fingerprint_difference,
-    stored_fingerprint,
-)
+from susp_bo.store import EvaluationStore, StoreFileError, StoreMismatchError
+from susp_bo.store_fingerprint import fingerprint_difference, stored_fingerprint
 
 _NPY_MAGIC = b"\x93NUMPY"
 VERSION_KEYS = frozenset({"package_version", "store_schema_version"})
