@@ -159,10 +159,7 @@ def read_line_file(path: str | Path | None, spec: object) -> object:
         design = load_line(path)
         design.check_covers(0.0, synthetic_track_length_m(spec), "the run (--speed, --duration)")
     except DesignError as error:
-        message = str(error)  # some messages name the flag themselves
-        if not message.startswith("--line"):
-            message = f"--line: {message}"
-        raise UsageError(message) from error
+        raise UsageError(f"--line: {error}") from error
     return design
 
 

@@ -174,7 +174,7 @@ def load_line(path: str | Path) -> TrackDesign:
     """
     file = Path(path)
     if not file.is_file():
-        raise DesignError(f"--line: file {str(file)!r} does not exist")
+        raise DesignError(f"file {str(file)!r} does not exist")
     try:
         data = tomllib.loads(file.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
