@@ -183,6 +183,8 @@ def rank_figure(
         band = stats.binom.interval(0.95, data.size, 1 / bins)
         ax.axhline(expect, color="k", lw=1)
         ax.axhspan(band[0], band[1], color="0.85", zorder=0)
+        for edge in band:  # dashed over the bars: a bar short of the lower edge shows
+            ax.axhline(edge, color="0.35", ls="--", lw=0.9, zorder=3)
         p = stats.kstest(data, "uniform").pvalue
         ax.set_title(f"{name}\nKS p = {p:.2g}", fontsize=8)
         ax.set_xlim(0, 1)
@@ -201,7 +203,8 @@ def rank_figure(
     )
     fig.suptitle(
         f"SBC rank histograms: truth's posterior quantile, {n} experiments "
-        f"({kind}{'; ' + source if source else ''}; grey: 95 % band of a uniform histogram)",
+        f"({kind}{'; ' + source if source else ''};\n"
+        "grey, dashed edges: 95 % range of one bin's count under uniform ranks)",
         fontsize=9,
     )
     fig.tight_layout()
