@@ -142,7 +142,8 @@ class LinearisedRig(CurvedLineMethods):
         """
         speed = self.spec.simulation.speed_m_s if speed_m_s is None else speed_m_s
         system = self._system(parameters, speed)
-        values, vectors = np.linalg.eig(system.a)
+        basis = self._modal_basis(system)
+        values, vectors = basis.values, basis.vectors
         n = system.n_dofs
         assembly = system.assembly
         labels = [_label(name) for name in assembly.dof_names]

@@ -66,6 +66,33 @@ def test_linear_model_is_stable_at_every_corner_of_the_admissible_set(
     assert worst < -0.05
 
 
+def test_damped_modes_agree_with_the_eigenvalues_and_the_undamped_frequencies(
+    linear: LinearisedRig,
+) -> None:
+    """Each oscillatory mode is one eigenvalue pair λ = -ζω ± iω√(1-ζ²) of the state
+    matrix; the carbody bounce, nearly uncoupled (energy share > 0.99), has |λ| close to
+    the undamped uncoupled frequency (a single degree of freedom's |λ| is ω_n exactly)."""
+    modes = linear.modes()
+    eigenvalues = linear.eigenvalues()
+    upper = eigenvalues[eigenvalues.imag > 1e-6]
+    assert len(modes) == upper.size
+    frequencies = [m.frequency_hz for m in modes]
+    assert frequencies == sorted(frequencies)
+    for mode in modes:
+        assert 0.0 < mode.damping_ratio < 1.0 and 0.0 < mode.energy_share <= 1.0
+        rebuilt = (
+            2
+            * np.pi
+            * mode.frequency_hz
+            * complex(-mode.damping_ratio, math.sqrt(1 - mode.damping_ratio**2))
+        )
+        assert np.min(np.abs(upper - rebuilt)) <= 1e-8 * abs(rebuilt)
+    bounce = next(m for m in modes if m.name == "carbody_bounce")
+    assert bounce.energy_share > 0.99
+    undamped = linear.modal_frequencies_hz()["carbody_bounce"]
+    assert bounce.frequency_hz == pytest.approx(undamped, rel=0.05)
+
+
 def test_second_rig_is_stable_and_has_its_own_modes() -> None:
     spec = load_rig_spec("manchester_benchmark")
     modes = LinearisedRig(spec).modal_frequencies_hz()
