@@ -61,7 +61,7 @@ from typing import Any
 import tomli_w
 
 from susp_bo.rig.catalog import available_rigs, rig_path
-from susp_bo.rig.schema import did_you_mean
+from susp_bo.rig.schema import did_you_mean, repeated
 from susp_bo.study_sections import (
     SECTIONS,
     BudgetConfig,
@@ -119,16 +119,19 @@ class StudyConfig:
             object.__setattr__(self, name, Path(value))
         if self.parameters is not None:
             names = self.parameters
+            allowed = "expected a non-empty list of distinct calibration parameter names"
             if (
                 isinstance(names, str)
                 or not isinstance(names, Sequence)
                 or not names
                 or not all(isinstance(n, str) and n for n in names)
-                or len(set(names)) != len(names)
             ):
+                raise ValueError(f"parameters: {names!r} is not allowed; {allowed}")
+            twice = repeated(names)
+            if twice:
                 raise ValueError(
-                    f"parameters: {names!r} is not allowed; expected a non-empty list of distinct "
-                    "calibration parameter names"
+                    f"parameters: {names!r} is not allowed: {', '.join(map(repr, twice))} "
+                    f"{'is' if len(twice) == 1 else 'are'} given more than once; {allowed}"
                 )
             object.__setattr__(self, "parameters", tuple(names))
 
@@ -256,7 +259,10 @@ def load_study_config(path: str | Path) -> StudyConfig:
             also for TOML syntax errors and unknown keys.
     """
     path = Path(path)
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not a UTF-8 text file ({error}); expected TOML") from error
     try:
         return parse_study_config(tomllib.loads(text), path.resolve().parent)
     except tomllib.TOMLDecodeError as error:

@@ -227,6 +227,23 @@ def test_check_parameters_names_unknown_and_allowed(study_folder: Path) -> None:
         config.check_parameters(("primary_vertical_stiffness",))
 
 
+def test_a_study_file_that_is_not_text_is_named(tmp_path: Path) -> None:
+    path = tmp_path / "study.toml"
+    path.write_bytes(b"\xff\xfe\x00rig")
+    with pytest.raises(ValueError, match=r"study\.toml: not a UTF-8 text file") as raised:
+        load_study_config(path)
+    assert str(raised.value).startswith(f"{path}: ")
+
+
+def test_a_repeated_parameter_is_named() -> None:
+    with pytest.raises(
+        ValueError, match=r"parameters: .* is not allowed: 'b' is given more than once"
+    ):
+        StudyConfig(
+            rig="hst_trailer", data=Path("d"), out=Path("o"), parameters=("a", "b", "c", "b")
+        )
+
+
 def test_direct_construction_is_validated_too() -> None:
     with pytest.raises(ValueError, match=r"parameters: \('a', 'a'\) is not allowed"):
         StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"), parameters=("a", "a"))

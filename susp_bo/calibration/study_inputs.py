@@ -3,20 +3,23 @@
 Each function refuses one kind of bad input with a :class:`StudyError` that names the
 file or flag, the value and what is allowed (the command line turns it into exit code 2):
 runs of another rig, CSV/.mat files where HDF5 runs are expected, a store of another
-study, a budget below what q parameters need; plus the design's quasi-static part that
-is taken off the measured accelerations before their spectra.
+study, a budget below what q parameters need, a σ table that does not name the rig's
+channels, runs sampled at different rates (named by file); plus the design's quasi-static
+part that is taken off the measured accelerations before their spectra.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from susp_bo.calibration.budget import budget_message, budget_requirement
-from susp_bo.data.measured import MeasuredRun
+from susp_bo.data.measured import MeasuredRun, run_paths
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.curving import reference_specific_force
+from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import RigSpec
 from susp_bo.store import StoreMismatchError
 from susp_bo.study_config import StudyConfig
@@ -36,21 +39,78 @@ def reference_parameters(
     return np.array([float(truth[n]) for n in names])
 
 
+def run_names(runs: tuple[MeasuredRun, ...], folder: Path) -> list[str]:
+    """What to call each of ``runs`` in a message: its file name when ``runs`` are the
+    measured-run files of ``folder`` (as :func:`~susp_bo.data.measured.load_runs` reads
+    them, sorted by name), else ``run <index>``."""
+    files = [path.name for path in run_paths(folder)]
+    if len(files) != len(runs):  # not the folder load_runs read: number the runs
+        return [f"run {index}" for index in range(len(runs))]
+    return files
+
+
+def check_sigma_table(config: StudyConfig, spec: RigSpec) -> None:
+    """Refuse an ``[output_error] sigma`` table that does not give one σ per rig channel.
+
+    A number or ``"estimate"`` passes. A table must name exactly the rig's channels: an
+    unknown key (usually a typo, or a channel of another rig) is an error like a missing one.
+
+    Raises:
+        StudyError: naming the unknown keys (with a close channel name when there is one),
+            the channels without a value, and the allowed channel names.
+    """
+    sigma = config.output_error.sigma
+    if not isinstance(sigma, Mapping):
+        return
+    channels = spec.channels
+    unknown = [f"{key!r}{did_you_mean(key, channels)}" for key in sigma if key not in channels]
+    missing = [channel for channel in channels if channel not in sigma]
+    problems = [f"unknown channel(s) {', '.join(unknown)}"] * bool(unknown)
+    if missing:
+        some = len(missing) < len(channels)
+        problems.append(
+            f"no value for channel(s) {missing}" if some else "it names no channel of the rig"
+        )
+    if problems:
+        raise StudyError(
+            f"output_error.sigma: {'; '.join(problems)}; allowed: {', '.join(channels)} (the "
+            f"channels of rig {spec.name!r}: give each one σ, or one number for all)"
+        )
+
+
 def sensor_noise(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> float:
-    """The configured sensor noise, else the one the runs' metadata record, else 0."""
-    if config.output_error.sensor_noise_m_s2 is not None:
-        return config.output_error.sensor_noise_m_s2
+    """The configured sensor noise, else the one the runs' metadata record, else 0.
+
+    Raises:
+        StudyError: runs sampled at different rates (also with a configured noise: the
+            noise floor and the spectra assume one rate), or, with no configured noise,
+            runs recording different noise levels; each run named by its file
+            (:func:`run_names`).
+    """
     rates = {run.sample_rate_hz for run in runs}
     if len(rates) > 1:
-        raise StudyError(
-            f"data: the runs are sampled at different rates {sorted(rates)} Hz; resample them "
-            "to one rate (the sensor-noise floor and the spectra assume one)"
+        names = run_names(runs, config.data)
+        by_rate = "; ".join(
+            f"{rate:g} Hz: {', '.join(n for n, r in zip(names, runs) if r.sample_rate_hz == rate)}"
+            for rate in sorted(rates)
         )
-    recorded = {float((run.metadata or {}).get("noise_m_s2", 0.0)) for run in runs}
-    if len(recorded) > 1:
         raise StudyError(
-            f"data: the runs record different sensor noise levels {sorted(recorded)} m/s^2; "
-            "set output_error.sensor_noise_m_s2"
+            f"data: the runs in {config.data} are sampled at different rates ({by_rate}); "
+            "resample them to one rate (the sensor-noise floor and the spectra assume one)"
+        )
+    if config.output_error.sensor_noise_m_s2 is not None:
+        return config.output_error.sensor_noise_m_s2
+    levels = [float((run.metadata or {}).get("noise_m_s2", 0.0)) for run in runs]
+    recorded = set(levels)
+    if len(recorded) > 1:
+        names = run_names(runs, config.data)
+        by_level = "; ".join(
+            f"{level:g} m/s^2: {', '.join(n for n, x in zip(names, levels) if x == level)}"
+            for level in sorted(recorded)
+        )
+        raise StudyError(
+            f"data: the runs in {config.data} record different sensor noise levels "
+            f"(metadata noise_m_s2: {by_level}); set output_error.sensor_noise_m_s2"
         )
     return recorded.pop()
 
@@ -87,9 +147,7 @@ def check_runs_rig(runs: tuple[MeasuredRun, ...], rig: str, folder: Path) -> Non
         if name is not None:
             by_rig.setdefault(str(name), []).append(index)
     if len(by_rig) > 1:
-        files = sorted(p.name for p in folder.iterdir() if p.suffix in {".h5", ".hdf5"})
-        if len(files) != len(runs):  # not the folder load_runs read: number the runs
-            files = [f"run {index}" for index in range(len(runs))]
+        files = run_names(runs, folder)
         listed = "; ".join(
             f"{name!r}: {', '.join(files[i] for i in indices)}"
             for name, indices in sorted(by_rig.items())

@@ -24,9 +24,11 @@ from susp_bo.calibration.study_inputs import (
     StudyError,
     check_budget,
     check_runs_rig,
+    check_sigma_table,
     design_removal,
     import_hint,
     reference_parameters,
+    run_names,
     sensor_noise,
 )
 from susp_bo.data.measured import MeasuredRun, load_runs
@@ -97,10 +99,7 @@ def _output_error(
         fixed = None
         if isinstance(sigma, int | float):
             fixed = tuple(float(sigma) for _ in channels)
-        elif sigma != "estimate":
-            missing = [c for c in channels if c not in sigma]
-            if missing:
-                raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
+        elif sigma != "estimate":  # a table: its channels checked by check_sigma_table
             fixed = tuple(float(sigma[c]) for c in channels)
         return PairedOutputError(
             noise_m_s2,
@@ -119,10 +118,7 @@ def _output_error(
         return OutputError(estimated.sigma, ell)
     if isinstance(sigma, int | float):
         return OutputError(tuple(float(sigma) for _ in channels), ell)
-    missing = [c for c in channels if c not in sigma]
-    if missing:
-        raise StudyError(f"output_error.sigma: no value for channel(s) {missing}")
-    return OutputError(tuple(float(sigma[c]) for c in channels), ell)
+    return OutputError(tuple(float(sigma[c]) for c in channels), ell)  # check_sigma_table
 
 
 def check_resume_budget(config: StudyConfig) -> None:
@@ -165,6 +161,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     except (FileNotFoundError, ValueError) as error:
         raise StudyError(str(error)) from error
     check_budget(config, len(names))
+    check_sigma_table(config, spec)
     store_path = config.out / STORE_NAME
     if store_path.exists() and not resume:
         raise StudyError(
@@ -175,13 +172,13 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         raise StudyError(f"--resume: {store_path} does not exist; nothing to resume")
     try:
         runs = tuple(load_runs(config.data, channels=spec.channels))
-        for index, run in enumerate(runs):
+        for name, run in zip(run_names(runs, config.data), runs):
             validate_run(
                 run,
                 spec.channels,
                 spec.spectrum,
                 axle_span_m=axle_span_m(spec),
-                source=f"{config.data}/run {index}",
+                source=str(config.data / name),
             )
     except ValueError as error:
         raise StudyError(f"data: {error}{import_hint(config.data)}") from error

@@ -13,7 +13,11 @@
    output-error model expects at the true parameters), possibly with ``at_bound``
    (parameters pushed to C_w's bounds to make up for the missing physics), is a
    finished fit that misses the data — what this workflow is for — so it
-   proceeds, and says so (``calibration_reliability.fit_finished``).
+   proceeds, and says so (``calibration_reliability.fit_finished``). The study file
+   (``RESULT_DIR/study.toml``) is read first in either case: the not-trusted answer is
+   to resume it, so a study file that does not load (not TOML, a rig or data folder that
+   is gone) is refused naming it (exit code 2) rather than answered with a ``--resume``
+   that cannot run.
 
 Then, on a finished calibration, reads the study of ``RESULT_DIR`` (``study.toml``,
 the measured runs it names) and (:mod:`susp_bo.discrepancy.workflow`):
@@ -288,6 +292,11 @@ def _not_trusted_document(
 
 def run_diagnose(args: argparse.Namespace) -> int:
     """Run the workflow on ``args.result_dir`` and write ``discrepancy.json`` and figures."""
+    if not args.result_dir:  # Path("") is the current folder: never what was meant
+        raise UsageError(
+            "RESULT_DIR: '' is not allowed (empty); expected the results folder of a "
+            f"calibration ({RESULT_NAME} and {CONFIG_NAME}, as written by susp-bo calibrate)"
+        )
     result_dir = Path(args.result_dir)
     result_file = result_dir / RESULT_NAME
     config_file = result_dir / CONFIG_NAME
@@ -316,6 +325,13 @@ def run_diagnose(args: argparse.Namespace) -> int:
         raise UsageError(f"RESULT_DIR: {result_file} is not readable JSON ({error})") from error
     if not isinstance(payload, dict):
         raise UsageError(f"RESULT_DIR: {result_file} holds no JSON object")
+    try:  # also when not trusted: the answer then is `calibrate <study.toml> --resume`
+        config = dataclasses.replace(load_study_config(config_file), out=result_dir.resolve())
+    except (ValueError, OSError) as error:
+        raise UsageError(
+            f"RESULT_DIR: {error}; diagnose (and resuming the calibration) needs this study "
+            "file as susp-bo calibrate wrote it, and what it names: restore it"
+        ) from error
     reliability = calibration_reliability(payload)
     if not reliability.fit_finished and not force:
         out = output_folder(args.out)
@@ -324,7 +340,6 @@ def run_diagnose(args: argparse.Namespace) -> int:
         print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
         return 0
     try:
-        config = dataclasses.replace(load_study_config(config_file), out=result_dir.resolve())
         study = prepare_study(config, resume=True)
         simulator = make_simulator(kind)
     except (StudyError, ValueError, OSError) as error:

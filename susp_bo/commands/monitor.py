@@ -68,6 +68,10 @@ def add_parser(sub: Any) -> None:
 
 def run_monitor(args: argparse.Namespace) -> int:
     """Run (or continue) the monitoring and print the maintenance table."""
+    if not args.folder:  # Path("") is the current folder: never what was meant
+        raise UsageError(
+            "FOLDER: '' is not allowed (empty); expected a monitoring folder of campaigns"
+        )
     folder = Path(args.folder)
     if not folder.is_dir():  # before torch is loaded (discover_campaigns says the same)
         raise UsageError(f"{folder}: not a folder (expected a monitoring folder of campaigns)")

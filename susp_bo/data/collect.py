@@ -31,12 +31,17 @@ def input_files(kind: ImportKind, inputs: Sequence[str | os.PathLike[str]]) -> l
     """The ``.<kind>`` files named by ``inputs`` (files, or folders of files), sorted, unique.
 
     Raises:
-        MeasuredDataError: a path that does not exist, a file of another type, or no
-            ``.<kind>`` file at all.
+        MeasuredDataError: an empty path, a path that does not exist, a file of another
+            type, or no ``.<kind>`` file at all.
     """
     suffix = f".{kind}"
     found: set[Path] = set()
     for item in inputs:
+        if not str(item):  # Path("") is the current folder: never what was meant
+            raise MeasuredDataError(
+                f"FILES_OR_DIR: '' is not allowed (empty); expected a {suffix} file or a "
+                "folder of them"
+            )
         path = Path(item)
         if path.is_dir():
             found.update(p for p in path.iterdir() if p.is_file() and p.suffix.lower() == suffix)
@@ -105,15 +110,32 @@ def read_runs(
         ``(run name, run)`` pairs, sorted by name.
 
     Raises:
-        MeasuredDataError: as :func:`input_files`, :func:`csv_groups` and the importers.
+        MeasuredDataError: as :func:`input_files`, :func:`csv_groups` and the importers;
+            and a run with an acceleration unit that cannot be converted to m/s² (an
+            import converts every run), naming its file.
     """
     if kind not in IMPORT_KINDS:
         raise MeasuredDataError(f"kind: {kind!r} is not allowed; expected one of {IMPORT_KINDS}")
     files = input_files(kind, inputs)
     if kind == "mat":
-        return [(path.stem, read_mat_run(path)) for path in files]
+        return [(path.stem, _convertible(path, read_mat_run(path))) for path in files]
     runs = []
     for name, group in csv_groups(files).items():
         speed = group.get("speed", speed_m_s)
-        runs.append((name, read_csv_run(group["accelerations"], group["geometry"], speed)))
+        path = group["accelerations"]
+        runs.append((name, _convertible(path, read_csv_run(path, group["geometry"], speed))))
     return runs
+
+
+def _convertible(path: Path, run: MeasuredRun) -> MeasuredRun:
+    """``run`` (unchanged) when :meth:`MeasuredRun.to_si` can convert it.
+
+    Raises:
+        MeasuredDataError: ``"<path>: unit mismatch: …"``, naming the channels, their units
+            and the known ones.
+    """
+    try:
+        run.to_si()
+    except MeasuredDataError as error:
+        raise MeasuredDataError(f"{path}: {error}") from None
+    return run

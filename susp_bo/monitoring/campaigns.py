@@ -17,7 +17,8 @@ vehicle, date and (optionally) line — comes from
 Discovery fails with one clear message (naming the folder and what to fix) on a
 missing vehicle or date, runs of different vehicles or dates in one campaign,
 a manifest that contradicts its runs, or two campaigns of the same vehicle on
-the same date.
+the same date (or of two vehicles whose names give the same results folder, e.g.
+``etc`` and ``../../etc``).
 """
 
 from __future__ import annotations
@@ -201,7 +202,8 @@ def discover_campaigns(folder: str | Path) -> list[Campaign]:
 
     Raises:
         CampaignError: no campaign at all, a campaign that cannot be identified,
-            or two campaigns of the same vehicle on the same date.
+            or two campaigns of the same vehicle on the same date (or of two vehicles
+            whose names give the same results folder: both named as given).
     """
     root = Path(folder)
     if not root.is_dir():
@@ -217,6 +219,14 @@ def discover_campaigns(folder: str | Path) -> list[Campaign]:
     seen: dict[str, Campaign] = {}
     for campaign in campaigns:
         other = seen.get(campaign.campaign_id)
+        if other is not None and other.vehicle != campaign.vehicle:
+            raise CampaignError(
+                f"{root}: vehicle {other.vehicle!r} ({other.folder}) and vehicle "
+                f"{campaign.vehicle!r} ({campaign.folder}) on {campaign.date.isoformat()} "
+                f"would share the same results folder {campaign.campaign_id!r} (a vehicle's "
+                "results folder keeps only letters, digits, '-', '_' and '.'); rename one of "
+                f"the vehicles in its {MANIFEST_NAME} or run metadata"
+            )
         if other is not None:
             raise CampaignError(
                 f"{root}: two campaigns of vehicle {campaign.vehicle!r} on "

@@ -52,6 +52,17 @@ def did_you_mean(value: str, allowed: Iterable[str]) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
+def repeated(names: Iterable[str]) -> list[str]:
+    """The names that occur more than once in ``names``, each once, in first-seen order."""
+    seen: set[str] = set()
+    again: dict[str, None] = {}
+    for name in names:
+        if name in seen:
+            again[name] = None
+        seen.add(name)
+    return list(again)
+
+
 def check_keys(where: str, given: Iterable[str], allowed: Iterable[str]) -> None:
     """Raise ValueError for the first key of ``given`` not in ``allowed``.
 

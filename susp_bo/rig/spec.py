@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.components import is_component_name, split_component_name
-from susp_bo.rig.schema import check_rig_keys
+from susp_bo.rig.schema import check_rig_keys, repeated
 from susp_bo.rig.spec_entries import (
     SIMULATION_LIMITS,
     CalibrationParameter,
@@ -127,9 +127,13 @@ class RigSpec:
                 base, _ = split_component_name(entry.name, params, self.topology)
                 params[entry.name] = params[base]
         object.__setattr__(self, "parameters", params)
-        names = [c.name for c in self.calibration]
-        if len(set(names)) != len(names):
-            raise ValueError(f"rig {self.name!r}: calibration parameter names repeat: {names}")
+        twice = repeated(c.name for c in self.calibration)
+        if twice:
+            raise ValueError(
+                f"rig {self.name!r}: [[calibration.parameters]] "
+                f"{', '.join(map(repr, twice))} {'is' if len(twice) == 1 else 'are'} listed more "
+                "than once; give each calibration parameter one entry"
+            )
         for entry in self.calibration:
             if entry.name not in params:
                 raise ValueError(
@@ -142,9 +146,24 @@ class RigSpec:
                     f"parameter {entry.name}: got {value} {entry.unit}; outside the "
                     f"admissible interval [{entry.lower}, {entry.upper}] {entry.unit}"
                 )
-        channels = [s.name for s in self.sensors]
-        if not channels or len(set(channels)) != len(channels):
-            raise ValueError(f"rig {self.name!r}: sensor names must be unique and non-empty")
+        if not self.sensors:
+            raise ValueError(
+                f"rig {self.name!r}: [[sensors]]: none given; expected at least one sensor "
+                "(its channel is what is measured and calibrated against)"
+            )
+        for index, sensor in enumerate(self.sensors, start=1):
+            if not isinstance(sensor.name, str) or not sensor.name.strip():
+                raise ValueError(
+                    f"rig {self.name!r}: [[sensors]] entry {index}: name {sensor.name!r} is not "
+                    "allowed; expected a non-empty channel name, e.g. 'carbody_front_vertical'"
+                )
+        twice = repeated(s.name for s in self.sensors)
+        if twice:
+            raise ValueError(
+                f"rig {self.name!r}: [[sensors]]: sensor name{'s' * (len(twice) > 1)} "
+                f"{', '.join(map(repr, twice))} {'is' if len(twice) == 1 else 'are'} given more "
+                "than once; expected one entry per sensor name (channel)"
+            )
 
     def parameter_values(self) -> dict[str, float]:
         """Every named parameter -> value (a copy)."""

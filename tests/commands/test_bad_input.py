@@ -3,6 +3,7 @@ what is allowed, no traceback, nothing simulated (the README's bad-input table, 
 
 from __future__ import annotations
 
+import dataclasses
 import tomllib
 from pathlib import Path
 
@@ -10,11 +11,12 @@ import pytest
 import tomli_w
 
 from susp_bo.cli import main
-from susp_bo.data.measured import save_run
+from susp_bo.data.measured import load_runs, save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.spec import load_rig_spec
-from susp_bo.store import EvaluationStore, study_fingerprint
+from susp_bo.store import EvaluationStore
+from susp_bo.store_fingerprint import study_fingerprint
 
 
 def _rig_copy(folder: Path, name: str, **changes: object) -> Path:
@@ -297,3 +299,94 @@ def test_debug_prints_the_traceback(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert main(["--debug", "synth", "hst_trailer", "--out", str(file)]) == 2
     err = capsys.readouterr().err
     assert "Traceback" in err and "UsageError" in err and "--out:" in err
+
+
+# --- study settings against the rig, measured runs that disagree -------------------------------
+
+
+def test_a_sigma_table_with_an_unknown_channel_names_it_and_the_allowed_ones(
+    rigs: dict[str, Path],
+    runs_by_rig: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    study = tmp_path / "study.toml"
+    study.write_text(
+        tomli_w.dumps(
+            {
+                "rig": str(rigs["short_a"]),
+                "data": str(runs_by_rig["short_a"]),
+                "out": str(tmp_path / "o"),
+                "output_error": {"sigma": {"nochannel": 0.1}},
+            }
+        )
+    )
+    channels = load_rig_spec(rigs["short_a"]).channels
+    _refused(
+        capsys,
+        ["calibrate", str(study)],
+        "output_error.sigma: unknown channel(s) 'nochannel'",
+        f"allowed: {', '.join(channels)}",
+    )
+    assert not (tmp_path / "o").exists()
+
+
+def test_runs_at_different_sample_rates_are_named_by_file(
+    rigs: dict[str, Path],
+    runs_by_rig: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    data = tmp_path / "data"
+    data.mkdir()
+    runs = load_runs(runs_by_rig["short_a"])
+    save_run(runs[0], data / "slow.h5")
+    fast = dataclasses.replace(runs[1], sample_rate_hz=2 * runs[1].sample_rate_hz)
+    save_run(fast, data / "fast.h5")
+    rate = runs[0].sample_rate_hz
+    out = tmp_path / "o"
+    _refused(
+        capsys,
+        ["calibrate", str(rigs["short_a"]), str(data), "--out", str(out)],
+        "sampled at different rates",
+        f"{rate:g} Hz: slow.h5",
+        f"{2 * rate:g} Hz: fast.h5",
+    )
+    assert not out.exists()
+    # also with the sensor noise given: the noise floor and the spectra assume one rate
+    study = tmp_path / "study.toml"
+    study.write_text(
+        f'rig = "{rigs["short_a"]}"\ndata = "{data}"\nout = "{out}"\n'
+        "[output_error]\nsensor_noise_m_s2 = 0.01\n"
+    )
+    _refused(capsys, ["calibrate", str(study)], "sampled at different rates", "fast.h5")
+    assert not out.exists()
+
+
+def test_an_empty_monitoring_folder_argument_is_refused_as_empty(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.chdir(tmp_path)  # "" must not mean the current folder
+    err = _refused(capsys, ["monitor", "", "--out", "o"], "FOLDER: '' is not allowed (empty)")
+    assert "holds no campaign" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_run_that_does_not_fit_the_band_is_named_by_its_file(
+    rigs: dict[str, Path],
+    runs_by_rig: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    data = tmp_path / "data"
+    data.mkdir()
+    runs = load_runs(runs_by_rig["short_a"])
+    save_run(runs[0], data / "good.h5")
+    short = dataclasses.replace(  # 1 s: shorter than one Welch segment
+        runs[1], accelerations_m_s2=runs[1].accelerations_m_s2[:, : int(runs[1].sample_rate_hz)]
+    )
+    save_run(short, data / "cut_short.h5")
+    out = tmp_path / "o"
+    argv = ["calibrate", str(rigs["short_a"]), str(data), "--out", str(out)]
+    _refused(capsys, argv, f"data: {data / 'cut_short.h5'}: ", "Welch segment")
+    assert not out.exists()

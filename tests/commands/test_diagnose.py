@@ -15,7 +15,7 @@ def _result_dir(tmp_path: Path, payload: object) -> Path:
     folder.mkdir()
     text = payload if isinstance(payload, str) else json.dumps(payload)
     (folder / "result.json").write_text(text)
-    (folder / "study.toml").write_text('rig = "hst_trailer"\n')
+    (folder / "study.toml").write_text('rig = "hst_trailer"\ndata = "."\nout = "."\n')
     return folder
 
 
@@ -58,3 +58,27 @@ def test_only_the_exact_trusted_verdict_counts(tmp_path: Path, verdict, capsys) 
     assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 0
     document = json.loads((tmp_path / "o" / "discrepancy.json").read_text())
     assert document["verdict"] == "calibration_not_trusted"
+
+
+def test_an_empty_result_dir_is_refused_as_empty(tmp_path: Path, capsys, monkeypatch) -> None:
+    monkeypatch.chdir(_result_dir(tmp_path, {}))  # "" must not mean the current folder
+    assert main(["diagnose", "", "--out", str(tmp_path / "o")]) == 2
+    error = capsys.readouterr().err
+    assert "RESULT_DIR: '' is not allowed" in error and "empty" in error
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_study_file_that_is_not_toml_is_refused_even_when_not_trusted(
+    tmp_path: Path, capsys
+) -> None:
+    """The not-trusted answer recommends `calibrate RESULT_DIR/study.toml --resume`: with a
+    damaged study file that cannot run, so the file is named instead (exit code 2)."""
+    folder = _result_dir(tmp_path, {"n_evaluations": 30, "reliability": {
+        "verdict": "not_trusted", "reasons": [], "sentence": "no"}})  # fmt: skip
+    study = folder / "study.toml"
+    study.write_text('rig = = "hst_trailer"\n')
+    assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 2
+    error = capsys.readouterr().err
+    assert f"RESULT_DIR: {study}: not valid TOML" in error and "Traceback" not in error
+    assert "--resume" not in error
+    assert not (tmp_path / "o").exists()

@@ -3,6 +3,7 @@ against the rig, with messages naming the file and what is expected."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -147,6 +148,20 @@ def test_runs_that_do_not_fit_the_rig_are_refused(
     assert not out.exists()  # nothing written when a run is refused
 
 
+def test_a_unit_that_cannot_be_converted_names_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = _run(0)
+    run = dataclasses.replace(run, units=("furlong/s^2", *run.units[1:]))
+    _csv(tmp_path / "csv", "a", run)
+    out = tmp_path / "h5"
+    code, err = _code_and_err(capsys, ["import", "csv", str(tmp_path / "csv"), "--out", str(out)])
+    assert code == 2 and "Traceback" not in err
+    assert f"{tmp_path / 'csv' / 'a_accelerations.csv'}: unit mismatch" in err, err
+    assert "'furlong/s^2'" in err and "known units" in err
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("files", "needle"),
     [
@@ -168,6 +183,16 @@ def test_bad_csv_inputs_are_named(
         (source / name).write_text(text)
     code, err = _code_and_err(capsys, ["import", "csv", str(source), "--out", str(tmp_path / "o")])
     assert code == 2 and needle in err and "Traceback" not in err, err
+
+
+def test_an_empty_input_is_refused_as_empty(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _csv(tmp_path, "a", _run(0))  # "" must not mean the current folder
+    monkeypatch.chdir(tmp_path)
+    code, err = _code_and_err(capsys, ["import", "csv", "", "--out", str(tmp_path / "h5")])
+    assert code == 2 and "FILES_OR_DIR: '' is not allowed (empty)" in err, err
+    assert not (tmp_path / "h5").exists()
 
 
 def test_bad_paths_and_flags_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -112,6 +112,19 @@ def test_two_campaigns_of_one_vehicle_on_one_date_are_refused(tmp_path: Path) ->
         discover_campaigns(tmp_path)
 
 
+def test_two_vehicles_whose_names_make_one_results_folder_are_both_named(tmp_path: Path) -> None:
+    """'etc' and '../../etc' are different vehicles with the same results sub-folder 'etc'."""
+    first = _campaign(tmp_path / "a", {}, manifest='vehicle = "etc"\ndate = 2026-01-01\n')
+    second = _campaign(tmp_path / "b", {}, manifest='vehicle = "../../etc"\ndate = 2026-01-01\n')
+    with pytest.raises(CampaignError) as raised:
+        discover_campaigns(tmp_path)
+    message = str(raised.value)
+    assert f"vehicle 'etc' ({first})" in message
+    assert f"vehicle '../../etc' ({second})" in message
+    assert "same results folder 'etc/2026-01-01'" in message
+    assert "merge their runs" not in message  # two vehicles: renaming one is the fix
+
+
 def test_an_empty_folder_holds_no_campaign(tmp_path: Path) -> None:
     with pytest.raises(CampaignError, match="holds no campaign"):
         discover_campaigns(tmp_path)

@@ -41,7 +41,8 @@ def _refused(folder: Path, out: Path, capsys: pytest.CaptureFixture[str], *flags
         (
             ["--parameters", "yaw_damper_damping,yaw_damper_damping"],
             "susp-bo monitor: --parameters: ['yaw_damper_damping', 'yaw_damper_damping'] is "
-            "not allowed; expected a non-empty list of distinct",
+            "not allowed: 'yaw_damper_damping' is given more than once; expected a non-empty "
+            "list of distinct",
         ),
         (
             ["--parameters", "nonexistent"],

@@ -207,3 +207,34 @@ def test_effects_table_is_parsed_for_the_registry() -> None:
     document["effects"] = {"carbody_bending": {"enabled": False, "frequency_hz": 9.0}}
     spec = parse_rig(document)
     assert spec.effects == {"carbody_bending": {"enabled": False, "frequency_hz": 9.0}}
+
+
+def test_a_repeated_calibration_parameter_is_named_not_the_whole_list() -> None:
+    document = _document()
+    entries = document["calibration"]["parameters"]
+    entries.append(dict(entries[2]))  # secondary_vertical_stiffness, a second time
+    with pytest.raises(ValueError) as raised:
+        parse_rig(document)
+    message = str(raised.value)
+    assert "'secondary_vertical_stiffness' is listed more than once" in message
+    assert "primary_vertical_damping" not in message  # not the whole list
+
+
+def test_no_sensors_is_told_apart_from_a_repeated_sensor() -> None:
+    document = _document()
+    document["sensors"] = []
+    with pytest.raises(ValueError, match=r"\[\[sensors\]\]: none given; expected at least one"):
+        parse_rig(document)
+    document = _document()
+    document["sensors"].append(dict(document["sensors"][1]))
+    repeated = document["sensors"][1]["name"]
+    with pytest.raises(ValueError, match=rf"sensor name {repeated!r} is given more than once"):
+        parse_rig(document)
+
+
+@pytest.mark.parametrize("name", ["", "  "])
+def test_a_sensor_without_a_name_is_refused(name: object) -> None:
+    document = _document()
+    document["sensors"][1]["name"] = name
+    with pytest.raises(ValueError, match=rf"\[\[sensors\]\] entry 2: name {name!r} is not allowed"):
+        parse_rig(document)
