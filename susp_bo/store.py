@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
+import numbers
 import sqlite3
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -138,12 +140,36 @@ class Evaluation:
 
 
 def _parameter_array(parameters: np.ndarray | list[float] | tuple[float, ...]) -> np.ndarray:
-    values = np.ascontiguousarray(parameters, dtype="<f8")
+    try:
+        values = np.ascontiguousarray(parameters, dtype="<f8")
+    except (TypeError, ValueError) as error:
+        raise TypeError(
+            f"parameters: {parameters!r} is not allowed; expected (q,) real numbers"
+        ) from error
     if values.ndim != 1 or values.size == 0:
         raise ValueError(f"parameters: shape {values.shape} is not allowed; expected (q,), q >= 1")
     if not np.all(np.isfinite(values)):
         raise ValueError(f"parameters: {values.tolist()} contains NaN or inf; expected finite")
     return values
+
+
+def _check_track_id(track_id: str) -> str:
+    if not isinstance(track_id, str):
+        raise TypeError(
+            f"track_id: {track_id!r} ({type(track_id).__name__}) is not allowed; expected a str"
+        )
+    return track_id
+
+
+def _finite_real(name: str, value: float, minimum: float | None = None) -> float:
+    """``value`` as a float, refused (naming ``name``) unless a finite real ≥ ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name}: {value!r} is not allowed; expected a finite real number")
+    number = float(value)
+    if not math.isfinite(number) or (minimum is not None and number < minimum):
+        bound = "" if minimum is None else f" >= {minimum:g}"
+        raise ValueError(f"{name}: {number} is not allowed; expected a finite number{bound}")
+    return number
 
 
 def evaluation_key(parameters: np.ndarray | list[float], track_id: str) -> str:
@@ -159,7 +185,7 @@ def evaluation_key(parameters: np.ndarray | list[float], track_id: str) -> str:
     """
     values = _parameter_array(parameters)
     digest = hashlib.sha256(values.tobytes())
-    digest.update(b"\x00" + track_id.encode("utf-8"))
+    digest.update(b"\x00" + _check_track_id(track_id).encode("utf-8"))
     return digest.hexdigest()
 
 
@@ -193,6 +219,15 @@ class EvaluationStore:
     ) -> None:
         self.path = Path(path)
         self.code_version = code_version
+        if not isinstance(fingerprint, Mapping):
+            raise TypeError(
+                f"fingerprint: {fingerprint!r} ({type(fingerprint).__name__}) is not allowed; "
+                "expected a mapping of key to value (study_fingerprint)"
+            )
+        if self.path.is_dir():
+            raise StoreFileError(
+                f"path: {self.path} is a folder; expected the store's .sqlite file"
+            )
         self.fingerprint: dict[str, str] = {
             **{str(k): str(v) for k, v in fingerprint.items()},
             "store_schema_version": STORE_SCHEMA_VERSION,
@@ -278,14 +313,32 @@ class EvaluationStore:
         Returns:
             The stored evaluation. When the key is already recorded ok, the
             stored row is kept unchanged and returned (first success wins).
+
+        Raises:
+            ValueError: NaN or inf in ``spectra`` or ``log_likelihood`` (not a successful
+                evaluation: record it with :meth:`record_failure`), empty spectra, or
+                ``seconds`` not finite and >= 0.
         """
         if spectra is None and log_likelihood is None:
             raise ValueError("record_ok: spectra and log_likelihood are both None; give one")
+        if log_likelihood is not None:
+            log_likelihood = _finite_real("log_likelihood", log_likelihood)
         blob = shape = None
         if spectra is not None:
-            array = np.ascontiguousarray(spectra, dtype="<f8")
-            if array.ndim != 2:
-                raise ValueError(f"spectra: shape {array.shape} is not allowed; expected (C x F)")
+            try:
+                array = np.ascontiguousarray(spectra, dtype="<f8")
+            except (TypeError, ValueError) as error:
+                message = f"spectra: {spectra!r} is not allowed; expected (C x F) real numbers"
+                raise TypeError(message) from error
+            if array.ndim != 2 or array.size == 0:
+                raise ValueError(
+                    f"spectra: shape {array.shape} is not allowed; expected (C x F), C, F >= 1"
+                )
+            if not np.all(np.isfinite(array)):
+                raise ValueError(
+                    "spectra: contains NaN or inf; an evaluation without finite spectra "
+                    "is a failure (record_failure), not ok"
+                )
             blob, shape = array.tobytes(), f"{array.shape[0]},{array.shape[1]}"
         return self._record(
             parameters, track_id, "ok", None, None, blob, shape, log_likelihood, seconds
@@ -314,6 +367,8 @@ class EvaluationStore:
         """
         if kind not in FAILURE_KINDS:
             raise ValueError(f"kind: {kind!r} is not allowed; expected one of {FAILURE_KINDS}")
+        if not isinstance(reason, str):
+            raise TypeError(f"reason: {reason!r} is not allowed; expected a str")
         return self._record(parameters, track_id, "failed", kind, reason, None, None, None, seconds)
 
     def _record(
@@ -330,6 +385,7 @@ class EvaluationStore:
     ) -> Evaluation:
         values = _parameter_array(parameters)
         key = evaluation_key(values, track_id)
+        seconds = _finite_real("seconds", seconds, minimum=0.0)
         row = (
             key,
             values.tobytes(),

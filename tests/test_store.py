@@ -31,7 +31,7 @@ FINGERPRINT = study_fingerprint("rig-sha-1", "data-sha-1", ("primary_stiffness",
 
 def test_spectra_and_parameters_round_trip_bit_for_bit(tmp_path: Path) -> None:
     parameters = np.array([1.176e6, np.nextafter(40e3, 1e9)])
-    spectra = np.array([[-0.0, 5e-324, 1e308], [np.nan, -np.inf, 0.1 + 0.2]])
+    spectra = np.array([[-0.0, 5e-324, 1e308], [-1.7976931348623157e308, -5e-324, 0.1 + 0.2]])
     path = tmp_path / "study.sqlite"
     with EvaluationStore(path, FINGERPRINT) as store:
         store.record_ok(parameters, "run-01", spectra, seconds=2.5, log_likelihood=-12.25)
@@ -40,7 +40,7 @@ def test_spectra_and_parameters_round_trip_bit_for_bit(tmp_path: Path) -> None:
     assert found is not None and found.ok
     assert found.spectra is not None
     assert found.spectra.dtype == np.float64
-    assert found.spectra.tobytes() == spectra.tobytes()  # NaN, -0.0, subnormal included
+    assert found.spectra.tobytes() == spectra.tobytes()  # -0.0, subnormals, extremes included
     assert found.parameters.tobytes() == parameters.tobytes()
     assert (found.track_id, found.seconds, found.log_likelihood) == ("run-01", 2.5, -12.25)
     assert (found.attempts, found.code_version) == (1, susp_bo.__version__)
@@ -175,6 +175,52 @@ def test_bad_records_are_refused(tmp_path: Path) -> None:
             store.record_failure([1.0, 1.0], "t", "x", 1.0, kind="oom")  # type: ignore[arg-type]
         with pytest.raises(ValueError, match="status: 'done' is not allowed"):
             store.count("done")
+        assert store.count() == 0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "field"),
+    [
+        ({"log_likelihood": float("nan")}, ValueError, "log_likelihood: nan"),
+        ({"log_likelihood": float("inf")}, ValueError, "log_likelihood: inf"),
+        ({"log_likelihood": "abc"}, TypeError, "log_likelihood: 'abc'"),
+        ({"spectra": np.full((2, 3), np.nan)}, ValueError, "spectra: contains NaN"),
+        ({"spectra": np.zeros((0, 3))}, ValueError, r"spectra: shape \(0, 3\)"),
+        ({"seconds": float("nan")}, ValueError, "seconds: nan"),
+        ({"seconds": -5.0}, ValueError, "seconds: -5.0"),
+        ({"track_id": 3}, TypeError, "track_id: 3"),
+        ({"parameters": ["a"]}, TypeError, "parameters: "),
+    ],
+)
+def test_record_ok_refuses_what_is_not_a_successful_evaluation(
+    tmp_path: Path, kwargs: dict, error: type[Exception], field: str
+) -> None:
+    """NaN log L was stored as NULL (status ok, no spectra, no log L), NaN spectra as ok,
+    NaN seconds hit an SQLite IntegrityError, an int track id an AttributeError."""
+    arguments = {
+        "parameters": [1.0, 3.0],
+        "track_id": "t",
+        "spectra": None,
+        "seconds": 1.0,
+        "log_likelihood": -1.0,
+        **kwargs,
+    }
+    with EvaluationStore(tmp_path / "s.sqlite", FINGERPRINT) as store:
+        with pytest.raises(error, match=field):
+            store.record_ok(**arguments)
+        assert store.count() == 0
+
+
+def test_store_arguments_are_named(tmp_path: Path) -> None:
+    with pytest.raises(TypeError, match="fingerprint: "):
+        EvaluationStore(tmp_path / "s.sqlite", ["rig"])  # type: ignore[arg-type]
+    with pytest.raises(StoreFileError, match="is a folder"):
+        EvaluationStore(tmp_path, FINGERPRINT)
+    with EvaluationStore(tmp_path / "s.sqlite", FINGERPRINT) as store:
+        with pytest.raises(TypeError, match="reason: None"):
+            store.record_failure([1.0], "t", None, 1.0)  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="seconds: inf"):
+            store.record_failure([1.0], "t", "boom", float("inf"))
         assert store.count() == 0
 
 

@@ -81,17 +81,39 @@ class OutputError:
             return np.eye(n_frequencies)
         if frequencies_hz is None:
             raise ValueError("frequencies_hz: required when correlation_length_hz is set")
-        f = np.asarray(frequencies_hz, dtype=np.float64)
-        if f.shape != (n_frequencies,):
-            raise ValueError(f"frequencies_hz: shape {f.shape}, expected ({n_frequencies},)")
+        f = _check_frequencies(frequencies_hz, n_frequencies)
         corr = np.exp(-np.abs(f[:, None] - f[None, :]) / self.correlation_length_hz)
         return np.linalg.cholesky(corr + 1e-10 * np.eye(n_frequencies))
+
+
+def _check_frequencies(frequencies_hz: np.ndarray, n_frequencies: int) -> np.ndarray:
+    """The (F,) grid as float64, refused unless finite and strictly increasing."""
+    f = np.asarray(frequencies_hz, dtype=np.float64)
+    if f.shape != (n_frequencies,):
+        raise ValueError(f"frequencies_hz: shape {f.shape}, expected ({n_frequencies},)")
+    bad = np.flatnonzero(~np.isfinite(f))
+    if bad.size:
+        raise ValueError(
+            f"frequencies_hz: value {f[bad[0]]} at index {bad[0]}; expected finite values in Hz"
+        )
+    bad = np.flatnonzero(np.diff(f) <= 0.0)
+    if bad.size:
+        i = bad[0]
+        raise ValueError(
+            f"frequencies_hz: {f[i]} at index {i} then {f[i + 1]}; the grid must be strictly "
+            "increasing"
+        )
+    return f
 
 
 def _check_spectra(name: str, a: np.ndarray, n_channels: int) -> np.ndarray:
     a = np.asarray(a, dtype=np.float64)
     if a.ndim < 3 or a.shape[-2] != n_channels:
         raise ValueError(f"{name}: shape {a.shape}, expected (... x {n_channels} x F)")
+    if a.size == 0:
+        raise ValueError(
+            f"{name}: shape {a.shape} is empty; expected at least one spectrum and one frequency"
+        )
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name}: contains NaN or inf")
     return a
@@ -153,7 +175,8 @@ def log_likelihood(
         simulated: (μ x C x F) simulated spectra h(x_j, w) for one w, or (b x μ x C x F)
             for b parameter vectors at once.
         error: output error model B.
-        frequencies_hz: (F,) frequency grid in Hz; required with a frequency correlation.
+        frequencies_hz: (F,) finite, strictly increasing frequency grid in Hz; required with
+            a frequency correlation (ignored without one).
 
     Returns:
         log L as a float, or (b,) array for batched ``simulated``.
@@ -179,20 +202,41 @@ def estimate_output_error(
         measured: (ν x C x F) measured log-amplitude spectra.
         simulated: (μ x C x F) simulated spectra at a pilot parameter, or None to use the
             replicate scatter of the measured spectra (then ν ≥ 2).
-        frequencies_hz: (F,) grid in Hz, required when ``correlated``.
+        frequencies_hz: (F,) finite, strictly increasing grid in Hz, required when
+            ``correlated`` (then F ≥ 2).
         correlated: also estimate the frequency correlation length.
-        floor: smallest σ_c returned (natural-log units, > 0).
-        em_iterations: EM iterations for the mixture maximum likelihood.
+        floor: smallest σ_c returned (natural-log units, finite, > 0).
+        em_iterations: EM iterations (≥ 1) for the mixture maximum likelihood.
 
     Returns:
         The estimated :class:`OutputError`.
     """
-    if not floor > 0.0:
-        raise ValueError(f"floor: {floor} must be > 0")
+    if isinstance(floor, bool) or not isinstance(floor, (int, float, np.integer, np.floating)):
+        raise TypeError(f"floor: {floor!r} must be a real number > 0")
+    if not (math.isfinite(floor) and floor > 0.0):
+        raise ValueError(f"floor: {floor} must be finite and > 0")
+    if isinstance(em_iterations, bool) or not isinstance(em_iterations, (int, np.integer)):
+        raise TypeError(f"em_iterations: {em_iterations!r} must be an integer ≥ 1")
+    if em_iterations < 1:
+        raise ValueError(f"em_iterations: {em_iterations} must be ≥ 1")
     measured = np.asarray(measured, dtype=np.float64)
     if measured.ndim != 3:
         raise ValueError(f"measured: shape {measured.shape}, expected (ν x C x F)")
+    if measured.size == 0:
+        raise ValueError(
+            f"measured: shape {measured.shape} is empty; expected ν ≥ 1 runs, C ≥ 1 channels "
+            "and F ≥ 1 frequencies"
+        )
+    if not np.all(np.isfinite(measured)):
+        raise ValueError("measured: contains NaN or inf")
     nu, n_ch, n_freq = measured.shape
+    f = None
+    if correlated:
+        if frequencies_hz is None:
+            raise ValueError("frequencies_hz: required when correlated=True")
+        if n_freq < 2:
+            raise ValueError(f"measured: F = {n_freq}; correlated=True needs F ≥ 2 frequencies")
+        f = _check_frequencies(frequencies_hz, n_freq)
     if simulated is None:
         if nu < 2:
             raise ValueError(f"measured: ν = {nu}; need ν ≥ 2 without simulated spectra")
@@ -201,6 +245,11 @@ def estimate_output_error(
         weights = np.ones((nu, 1)) * nu / (nu - 1)
     else:
         simulated = _check_spectra("simulated", simulated, n_ch)
+        if simulated.ndim != 3 or simulated.shape[-1] != n_freq:
+            raise ValueError(
+                f"simulated: shape {simulated.shape}, expected (μ x {n_ch} x {n_freq}) "
+                "like measured"
+            )
         resid = measured[:, None] - simulated[None]  # ν x μ x C x F
         ss = np.sum(resid**2, axis=-1)  # ν x μ x C
         var = ss.mean(axis=(0, 1)) / n_freq
@@ -211,10 +260,7 @@ def estimate_output_error(
         weights = np.exp(logp - logsumexp(logp, axis=1, keepdims=True))
     sigma = np.maximum(np.sqrt(var), floor)
     ell = None
-    if correlated:
-        if frequencies_hz is None:
-            raise ValueError("frequencies_hz: required when correlated=True")
-        f = np.asarray(frequencies_hz, dtype=np.float64)
+    if f is not None:
         z = resid / sigma[:, None]
         lag0 = np.einsum("ij,ijcf->", weights, z**2)
         lag1 = np.einsum("ij,ijcf->", weights, z[..., 1:] * z[..., :-1])

@@ -73,7 +73,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -187,6 +187,10 @@ class MeasuredRun:
         if len(set(channels)) != len(channels):
             duplicates = sorted({c for c in channels if channels.count(c) > 1})
             raise MeasuredDataError(f"MeasuredRun.channels: duplicate names {duplicates}")
+        if np.iscomplexobj(self.accelerations_m_s2):  # float64 would drop the imaginary part
+            raise MeasuredDataError(
+                "MeasuredRun.accelerations_m_s2: complex values; expected real accelerations"
+            )
         try:
             data = np.array(self.accelerations_m_s2, dtype=np.float64)
         except (TypeError, ValueError) as error:
@@ -249,6 +253,7 @@ class MeasuredRun:
 
     def select(self, channels: Sequence[str]) -> MeasuredRun:
         """The same run restricted to (and ordered as) ``channels``."""
+        channels = _channel_tuple(channels)
         missing = [c for c in channels if c not in self.channels]
         if missing:
             raise MeasuredDataError(
@@ -387,15 +392,50 @@ def nan_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
     return problems
 
 
+def _channel_tuple(channels: Sequence[str]) -> tuple[str, ...]:
+    """``channels`` as a tuple; a str (which would be split into characters) or an empty
+    list is refused."""
+    if isinstance(channels, str) or not isinstance(channels, Iterable):
+        example = [channels] if isinstance(channels, str) else ["carbody_front_vertical"]
+        raise MeasuredDataError(
+            f"channels: {channels!r} is not allowed; expected a list of channel names, "
+            f"e.g. {example!r}"
+        )
+    names = tuple(channels)
+    if not names:
+        raise MeasuredDataError(
+            f"channels: {channels!r} is not allowed; expected one or more channel names"
+        )
+    return names
+
+
 def save_run(run: MeasuredRun, path: str | os.PathLike[str]) -> Path:
     """Write ``run`` to an HDF5 file in the documented format (atomic replace).
 
+    Args:
+        run: the run.
+        path: the file to write; its suffix is one :func:`load_runs` reads
+            (:data:`RUN_SUFFIXES`: ``.h5``, ``.hdf5``).
+
     Returns:
         The path written.
+
+    Raises:
+        TypeError: ``run`` is not a :class:`MeasuredRun`.
+        MeasuredDataError: ``path`` is a folder or has another suffix.
     """
     from susp_bo.data._hdf5 import write_run_file
 
+    if not isinstance(run, MeasuredRun):
+        raise TypeError(f"run: expected a MeasuredRun, got {type(run).__name__}")
     target = Path(path)
+    if target.is_dir():
+        raise MeasuredDataError(f"path: {target} is a folder; expected a run file (e.g. run.h5)")
+    if target.suffix not in RUN_SUFFIXES:
+        raise MeasuredDataError(
+            f"path: {target} has suffix {target.suffix!r}, which load_runs does not read; "
+            f"expected one of {sorted(RUN_SUFFIXES)}"
+        )
     target.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
     os.close(handle)
@@ -452,8 +492,11 @@ def load_runs(
         allow_nan: as in :func:`load_run`.
 
     Raises:
-        MeasuredDataError: no runs, an unreadable run, or inconsistent channels.
+        MeasuredDataError: no runs, an unreadable run, inconsistent channels, or
+            ``channels`` a str or empty.
     """
+    if channels is not None:
+        channels = _channel_tuple(channels)
     directory = Path(folder)
     if not directory.is_dir():
         raise MeasuredDataError(f"{directory}: not a folder of measured runs")

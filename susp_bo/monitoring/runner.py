@@ -36,9 +36,10 @@ except ``data`` and ``out`` — overridden by the arguments.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import sys
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -127,6 +128,12 @@ def base_config(
         except (ValueError, TypeError) as error:
             raise _flag_error("--rig", "rig", error) from None
     if parameters is not None:
+        if isinstance(parameters, str) or not isinstance(parameters, Iterable):
+            example = [parameters] if isinstance(parameters, str) else ["yaw_damper_damping"]
+            raise MonitorError(
+                f"--parameters: {parameters!r} is not allowed; expected a non-empty list of "
+                f"distinct calibration parameter names, e.g. {example!r}"
+            )
         try:  # the list alone (distinct names); the rig's calibration set is checked later
             parse_study_config(
                 {"rig": "hst_trailer", "parameters": list(parameters), **paths}, folder
@@ -139,6 +146,13 @@ def base_config(
         config = parse_study_config({**mapping, **paths}, folder)
     except (ValueError, TypeError) as error:
         raise MonitorError(f"{where}{error}") from None
+    if budget is not None and (
+        isinstance(budget, bool) or not isinstance(budget, int) or budget < 2
+    ):  # checked here: the design size is cut to the budget first and would be blamed
+        raise MonitorError(
+            f"--budget: {budget!r} is not allowed; expected an integer >= 2 "
+            "(likelihood evaluations per campaign)"
+        )
     try:
         if budget is not None:
             config = dataclasses.replace(
@@ -227,6 +241,11 @@ def monitor(
     Raises:
         MonitorError: bad folder, settings or campaign data — before any simulation.
     """
+    if isinstance(threshold, bool) or not isinstance(threshold, numbers.Real):
+        raise MonitorError(
+            f"threshold: {threshold!r} ({type(threshold).__name__}) is not allowed; expected "
+            "a probability in (0, 1)"
+        )
     if not 0.0 < threshold < 1.0:  # also false for nan
         raise MonitorError(f"threshold: got {threshold}; expected a probability in (0, 1)")
     folder, out = Path(folder).resolve(), Path(out).resolve()

@@ -289,8 +289,28 @@ class LinearisedRig(CurvedLineMethods):
         Returns:
             Spectra (C x F) in ln((m/s²)/√Hz): the PSD convolved with the Hann
             window's kernel (what Welch estimates), band-averaged like spectra.py.
+
+        Raises:
+            TypeError: ``psd`` not a :class:`TrackPSD`, ``settings`` not a
+                :class:`SpectrumSettings`.
+            ValueError: the band reaches the Nyquist frequency of the rig's sample rate
+                (the check :meth:`MeasuredRun.spectra` makes).
         """
+        if psd is not None and not isinstance(psd, TrackPSD):
+            raise TypeError(
+                f"psd: {psd!r} ({type(psd).__name__}) is not allowed; expected a TrackPSD, "
+                "e.g. TrackPSD('high'), or None for the rig's track quality"
+            )
+        if settings is not None and not isinstance(settings, SpectrumSettings):
+            raise TypeError(
+                f"settings: {settings!r} ({type(settings).__name__}) is not allowed; expected "
+                "a SpectrumSettings or None for the rig's"
+            )
         settings = self.spec.spectrum if settings is None else settings
+        try:  # an expected spectrum has no record length: one segment passes that part
+            settings.check_sample_rate(self.spec.simulation.sample_rate_hz, settings.segment_s)
+        except ValueError as error:
+            raise ValueError(f"settings: {error} (the rig's simulation.sample_rate_hz)") from error
         resolution = 1.0 / settings.segment_s
         step = resolution / 8.0
         fine = np.arange(1, int(np.ceil((settings.f_max_hz + 6 * resolution) / step)) + 1) * step

@@ -131,3 +131,63 @@ def test_expected_log_likelihood_at_truth_unpaired_matches_monte_carlo(
     # 4000 draws: the sample mean's sd is sd / 63; the sample sd's relative sd ≈ 1.1 %
     assert np.mean(draws) == pytest.approx(mean, abs=5 * sd / math.sqrt(4000))
     assert np.std(draws) == pytest.approx(sd, rel=0.06)
+
+
+@pytest.mark.parametrize(
+    "grid",
+    [np.zeros(6), np.full(6, np.nan), np.linspace(5.0, 1.0, 6), np.arange(3.0)],
+    ids=["repeated", "nan", "decreasing", "wrong-length"],
+)
+def test_correlated_error_refuses_a_bad_frequency_grid(
+    rng: np.random.Generator, grid: np.ndarray
+) -> None:
+    """A repeated, NaN, decreasing or short grid is refused naming ``frequencies_hz``, by
+    both log L (not −3e13 or nan) and the estimate (not a negative or silent ℓ)."""
+    measured = rng.normal(size=(3, 2, 6))
+    with pytest.raises(ValueError, match="frequencies_hz"):
+        log_likelihood(measured, measured[:2], OutputError((0.1, 0.1), 1.0), grid)
+    with pytest.raises(ValueError, match="frequencies_hz"):
+        estimate_output_error(measured, correlated=True, frequencies_hz=grid)
+
+
+@pytest.mark.parametrize(
+    ("measured", "simulated", "field"),
+    [
+        ((3, 2, 5), (0, 2, 5), "simulated"),
+        ((0, 2, 5), (2, 2, 5), "measured"),
+        ((3, 2, 0), (2, 2, 0), "measured"),
+    ],
+)
+def test_log_likelihood_refuses_empty_spectra(
+    rng: np.random.Generator, measured: tuple, simulated: tuple, field: str
+) -> None:
+    """μ = 0 or ν = 0 was a numpy reshape error, F = 0 returned log L = 0."""
+    with pytest.raises(ValueError, match=rf"{field}: shape .* is empty"):
+        log_likelihood(
+            rng.normal(size=measured), rng.normal(size=simulated), OutputError((0.1, 0.2))
+        )
+
+
+def test_estimate_output_error_argument_checks(rng: np.random.Generator) -> None:
+    """EM iterations < 1, a simulated grid of another F, NaN data and F = 1 with a
+    correlation are refused naming the argument at fault (not sigma, not numpy)."""
+    measured = rng.normal(size=(3, 2, 10))
+    simulated = rng.normal(size=(4, 2, 10))
+    for n in (0, -1):
+        with pytest.raises(ValueError, match="em_iterations"):
+            estimate_output_error(measured, simulated, em_iterations=n)
+    with pytest.raises(TypeError, match="em_iterations"):
+        estimate_output_error(measured, simulated, em_iterations=2.5)
+    with pytest.raises(ValueError, match="simulated: shape"):
+        estimate_output_error(measured, simulated[..., :5])
+    bad = measured.copy()
+    bad[0, 0, 0] = np.nan
+    for sim in (None, simulated):
+        with pytest.raises(ValueError, match="measured: contains NaN"):
+            estimate_output_error(bad, sim)
+    with pytest.raises(ValueError, match=r"measured: shape .* is empty"):
+        estimate_output_error(measured[..., :0])
+    with pytest.raises(ValueError, match="F ≥ 2"):
+        estimate_output_error(measured[..., :1], correlated=True, frequencies_hz=np.ones(1))
+    with pytest.raises(ValueError, match="floor"):
+        estimate_output_error(measured, floor=math.inf)

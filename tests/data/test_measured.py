@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -58,6 +59,7 @@ def test_run_properties_and_canonical_units(small_run: MeasuredRun) -> None:
         ({"accelerations_m_s2": np.zeros((2, 1))}, r"n_t >= 2"),
         ({"accelerations_m_s2": np.full((2, 5), np.inf)}, r"channel 'carbody_z' contains inf"),
         ({"accelerations_m_s2": [["x", "y"], ["z", "w"]]}, r"accelerations_m_s2: not numeric"),
+        ({"accelerations_m_s2": np.ones((2, 5)) * (1 + 1j)}, r"accelerations_m_s2: complex"),
         ({"sample_rate_hz": -100.0}, r"sample_rate_hz: got -100.0 Hz; must be > 0 Hz"),
         ({"sample_rate_hz": float("nan")}, r"sample_rate_hz: got nan; must be finite"),
         ({"sample_rate_hz": "100"}, r"sample_rate_hz: got '100'; expected a real number"),
@@ -179,6 +181,32 @@ def test_load_runs_sorted_and_channel_consistent(tmp_path: Path, run_factory: Ca
     save_run(run_factory(3, ("a", "c")), tmp_path / "run_c.h5")
     with pytest.raises(MeasuredDataError, match=r"run_c.h5: channel set differs.*\['b'\].*\['c'\]"):
         load_runs(tmp_path)
+
+
+def test_save_run_refuses_a_folder_and_a_suffix_load_runs_skips(
+    small_run: MeasuredRun, tmp_path: Path
+) -> None:
+    """A folder gave an IsADirectoryError quoting a temporary path; a .txt file was written
+    and then silently ignored by load_runs."""
+    with pytest.raises(MeasuredDataError, match=f"path: {re.escape(str(tmp_path))} is a folder"):
+        save_run(small_run, tmp_path)
+    with pytest.raises(MeasuredDataError, match=r"suffix '\.txt'.*\['\.h5', '\.hdf5'\]"):
+        save_run(small_run, tmp_path / "run.txt")
+    assert list(tmp_path.iterdir()) == []  # nothing written, no temporary left
+
+
+def test_load_runs_refuses_a_str_or_empty_channel_list(
+    small_run: MeasuredRun, tmp_path: Path
+) -> None:
+    """A str was split into one-letter channel names."""
+    save_run(small_run, tmp_path / "run.h5")
+    with pytest.raises(MeasuredDataError, match=r"channels: 'carbody_z' is not allowed.*\["):
+        load_runs(tmp_path, channels="carbody_z")
+    with pytest.raises(MeasuredDataError, match=r"channels: \[\] is not allowed"):
+        load_runs(tmp_path, channels=[])
+    with pytest.raises(MeasuredDataError, match=r"channels: 'bogie_y' is not allowed"):
+        small_run.select("bogie_y")
+    assert load_runs(tmp_path, channels=iter(["bogie_y"]))[0].channels == ("bogie_y",)
 
 
 def test_load_errors_for_missing_places(tmp_path: Path) -> None:

@@ -97,3 +97,27 @@ def test_the_python_api_refuses_a_threshold_outside_0_1(folder: Path, tmp_path: 
     ):
         susp_bo.monitor(folder, tmp_path / "out", threshold=1.5, progress=False)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("arguments", "expected"),
+    [
+        ({"threshold": "0.5"}, r"threshold: '0.5' \(str\) is not allowed; expected a probability"),
+        ({"budget": -5}, "--budget: -5 is not allowed; expected an integer >= 2"),
+        ({"budget": 1}, "--budget: 1 is not allowed; expected an integer >= 2"),
+        ({"budget": 60.0}, "--budget: 60.0 is not allowed"),
+        (
+            {"parameters": "yaw_damper_damping"},
+            r"--parameters: 'yaw_damper_damping' is not allowed; expected a non-empty list .* "
+            r"e\.g\. \['yaw_damper_damping'\]",
+        ),
+    ],
+)
+def test_the_python_api_names_the_bad_argument(
+    folder: Path, tmp_path: Path, arguments: dict[str, Any], expected: str
+) -> None:
+    """A str threshold was a TypeError from '<', budget = -5 blamed budget.initial_design
+    (the design size cut to the budget), a str of parameters was split into characters."""
+    with pytest.raises(MonitorError, match=expected):
+        susp_bo.monitor(folder, tmp_path / "out", progress=False, **arguments)
+    assert not (tmp_path / "out").exists()

@@ -12,6 +12,7 @@ from scipy.signal import argrelmin
 from susp_bo.rig.linear import LinearisedRig
 from susp_bo.rig.simulator import synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
+from susp_bo.rig.spectra import SpectrumSettings
 from susp_bo.rig.track import TrackGeometry, TrackPSD
 
 # Published ranges of uncoupled modes for high-speed passenger cars (shared/DESIGN.md:
@@ -133,6 +134,18 @@ def test_fast_path_spectra_are_finite_and_quick(
     mid = reference_spec.channels.index("carbody_mid_vertical")
     ratio = np.median(rougher.log_amplitude[mid] - spectra.log_amplitude[mid])
     assert ratio == pytest.approx(0.5 * math.log(1.08e-6 / 4.032e-7), abs=0.1)
+
+
+def test_fast_path_spectra_refuse_a_band_above_nyquist_and_a_psd_name(
+    linear: LinearisedRig, reference_spec: RigSpec
+) -> None:
+    """f_max above the rig's Nyquist gave spectra no recording can hold (MeasuredRun.spectra
+    refuses the same settings); a string psd was an AttributeError deep in the model."""
+    nyquist = 0.5 * reference_spec.simulation.sample_rate_hz
+    with pytest.raises(ValueError, match=r"settings: sample_rate_hz: .* Nyquist"):
+        linear.spectra(settings=SpectrumSettings(f_max_hz=1.2 * nyquist))
+    with pytest.raises(TypeError, match="psd: 'low'"):
+        linear.spectra(psd="low")  # type: ignore[arg-type]
 
 
 def test_a_reused_state_space_gives_the_fresh_rigs_response_bit_for_bit(
