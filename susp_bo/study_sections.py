@@ -131,6 +131,9 @@ class MCMCConfig:
     more than one; the defaults are those of :class:`CalibrationSettings`. ``sampler``:
     "auto" (random walk, then reflective HMC where the random walk found one mode but
     did not mix), "random_walk" or "hmc" (:mod:`susp_bo.calibration.sampling`).
+    ``draws`` is at least 4 with "random_walk" and 8 otherwise
+    (:func:`susp_bo.calibration.settings.min_mcmc_samples`, kept here so that reading a
+    config does not import torch; a test checks that the two agree).
     """
 
     section: ClassVar[str] = "mcmc"
@@ -141,13 +144,24 @@ class MCMCConfig:
 
     def __post_init__(self) -> None:
         _integer("mcmc.chains", self.chains, 1)
-        _integer("mcmc.draws", self.draws, 1)
         _integer("mcmc.warmup", self.warmup, 0)
         if self.sampler not in _SAMPLERS:
             raise ValueError(
                 f"mcmc.sampler: {self.sampler!r} is not allowed; expected one of "
                 + ", ".join(f'"{k}"' for k in _SAMPLERS)
             )
+        # the split R-hat needs 4 draws a chain, and HMC keeps half of them
+        least = 4 if self.sampler == "random_walk" else 8
+        try:
+            _integer("mcmc.draws", self.draws, least)
+        except ValueError as error:
+            why = (
+                "the split R-hat needs 4 draws per chain"
+                if least == 4
+                else f'with sampler = "{self.sampler}" HMC keeps half the draws per chain and '
+                "the split R-hat needs 4"
+            )
+            raise ValueError(f"{error} ({why})") from None
 
 
 @dataclass(frozen=True)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
+from susp_bo.study_config import load_study_config
 from susp_bo.study_sections import (
     SECTIONS,
     BudgetConfig,
@@ -35,6 +38,10 @@ def test_sections_by_table_name_in_file_order() -> None:
         (lambda: ExecutorConfig(scheduler="host"), r"executor\.scheduler: 'host'.*no port"),
         (lambda: MCMCConfig(chains=0), r"mcmc\.chains: 0 is not allowed"),
         (lambda: MCMCConfig(sampler="nuts"), r'"random_walk", "hmc", "auto"'),
+        (lambda: MCMCConfig(draws=2), r"mcmc\.draws: 2 .* >= 8 .*HMC keeps half"),
+        (lambda: MCMCConfig(draws=7, sampler="hmc"), r"mcmc\.draws: 7 .* >= 8"),
+        (lambda: MCMCConfig(draws=3, sampler="random_walk"), r"mcmc\.draws: 3 .* >= 4"),
+        (lambda: MCMCConfig(draws=200.0), r"mcmc\.draws: 200\.0 is not allowed"),
         (lambda: SearchConfig(kernel="rbf"), r'"matern", "additive_pairs", "auto"'),
         (lambda: OutputErrorConfig(model="mixture"), r"output_error\.model"),
     ],
@@ -48,3 +55,22 @@ def test_paired_config_refuses_a_correlation_length() -> None:
     with pytest.raises(ValueError, match=r"correlation_length_hz.*unpaired"):
         OutputErrorConfig(model="paired", correlation_length_hz=0.5)
     assert OutputErrorConfig(model="unpaired", correlation_length_hz=0.5).model == "unpaired"
+
+
+@pytest.mark.parametrize("sampler", ["random_walk", "hmc", "auto"])
+def test_mcmc_draws_minimum_agrees_with_the_calibration_settings(sampler: str) -> None:
+    """``[mcmc] draws`` is refused when the config is read, as CalibrationSettings refuses
+    ``mcmc_samples``, not after the whole budget in Pyro's split R-hat."""
+    from susp_bo.calibration.settings import min_mcmc_samples
+
+    least = min_mcmc_samples(sampler)
+    assert MCMCConfig(draws=least, sampler=sampler).draws == least
+    with pytest.raises(ValueError, match=r"mcmc\.draws"):
+        MCMCConfig(draws=least - 1, sampler=sampler)
+
+
+def test_a_study_file_with_too_few_draws_is_refused_naming_the_key(tmp_path: Path) -> None:
+    path = tmp_path / "study.toml"
+    path.write_text('rig = "hst_trailer"\ndata = "data"\nout = "out"\n\n[mcmc]\ndraws = 2\n')
+    with pytest.raises(ValueError, match=r"study\.toml.*mcmc\.draws: 2 is not allowed"):
+        load_study_config(path)

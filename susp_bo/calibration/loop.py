@@ -31,8 +31,9 @@ the result gets its reliability verdict (:func:`.reliability.assess`).
 Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
 for the surrogate they are imputed with the lowest finite log L observed so far
 (recomputed at every refit), which steers the search away from them without
-inventing structure below the data. If the whole initial design fails,
-``RuntimeError`` is raised.
+inventing structure below the data. If the whole initial design fails, or all of it
+but one point, or log L is the same at all of its finite points, ``RuntimeError`` is
+raised after the design, before any more evaluations.
 
 Determinism: every random choice (design scrambling, acquisition restarts, QMC
 samplers, hyperparameter restarts, MCMC) is seeded from ``settings.seed`` and the
@@ -73,8 +74,8 @@ from susp_bo.calibration.loop_step import (
     propose_step,
     torch_state,
 )
-from susp_bo.calibration.posterior import summarize
-from susp_bo.calibration.reliability import assess
+from susp_bo.calibration.posterior import check_names, summarize
+from susp_bo.calibration.reliability import assess, checked_expected_at_truth
 from susp_bo.calibration.result import CalibrationResult, IterationReport, Phase
 from susp_bo.calibration.sampling import (
     mean_sd_at_draws,
@@ -89,6 +90,52 @@ from susp_bo.numerics import one_blas_thread
 from susp_bo.progress import progress_bar
 
 logger = logging.getLogger(__name__)
+
+
+def _check_finite(argument: str, points: np.ndarray) -> None:
+    """Refuses points with NaN or ±inf coordinates before any of them is evaluated."""
+    values = np.asarray(points, dtype=np.float64)
+    bad = ~np.all(np.isfinite(values), axis=1)
+    if bad.any():
+        row = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{argument}: row {row} is {values[row].tolist()!r}; NaN and infinite coordinates "
+            f"are not allowed (in {int(bad.sum())} of {len(values)} rows); expected finite "
+            "points in C_w"
+        )
+
+
+def _check_design_values(y: np.ndarray) -> None:
+    """Raises as soon as the design's log L cannot inform a surrogate (before any more
+    evaluations): every run failed, only one succeeded, or log L is the same everywhere.
+
+    Raises:
+        ValueError: ``evaluate`` returned +inf (as at every refit:
+            :func:`.loop_step.impute_failures`).
+        RuntimeError: naming what happened.
+    """
+    if np.any(y == math.inf):
+        raise ValueError("evaluate: returned +inf, which is not a valid log-likelihood")
+    finite = y[np.isfinite(y)]
+    n = y.size
+    if finite.size == 0:
+        raise RuntimeError(
+            f"every log L evaluation failed (NaN/-inf) at the {n} points of the design: "
+            "nothing to fit"
+        )
+    if finite.size == 1:
+        raise RuntimeError(
+            f"only 1 of the {n} log L evaluations of the design succeeded (log L = "
+            f"{float(finite[0])!r}); the others failed (NaN/-inf): the surrogate needs at least "
+            "two distinct values"
+        )
+    if np.all(finite == finite[0]):
+        failed = f" ({n - finite.size} failed)" if finite.size < n else ""
+        raise RuntimeError(
+            f"log L is constant ({float(finite[0])!r}) over the {finite.size} finite "
+            f"evaluations of the design{failed}: the data do not inform the parameters or the "
+            "evaluator ignores them"
+        )
 
 
 def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -204,7 +251,7 @@ def calibrate(
         expected_at_truth: (mean, sd) of log L at the true parameters expected under the
             output-error model (needs the model, not the truth), when it provides one; the
             verdict then also checks the best log L against it.
-        initial_points: (m x q) points (physical units, clipped to the bounds) evaluated
+        initial_points: (m x q) finite points (physical units, clipped to the bounds) evaluated
             with the design, which has m points fewer (a warm start: e.g. a previous
             fit's maximum); None = none.
 
@@ -214,12 +261,19 @@ def calibrate(
     Raises:
         BudgetTooSmallError: the budget is below the minimum for q and
             ``settings.allow_small_budget`` is False (before any evaluation).
+        ValueError: bad input (names, bounds, ``expected_at_truth`` …; a repeated name;
+            NaN or infinite coordinates in ``design`` or ``initial_points``), before any
+            evaluation.
+        RuntimeError: the design's log L cannot be fitted (every evaluation failed, only
+            one succeeded, or log L is constant over it), raised after the design.
     """
     settings = settings or CalibrationSettings()
     b = check_bounds(bounds)
     q = b.shape[1]
     if len(names) != q:
         raise ValueError(f"names: {len(names)} names for q = {q} parameters")
+    check_names(names)
+    expected_at_truth = checked_expected_at_truth(expected_at_truth)
     budget = settings.max_evaluations or 50 * (q + 2)
     requirement = budget_requirement(
         q, settings.initial_design_size, settings.batch_size, settings.check_points
@@ -250,6 +304,7 @@ def calibrate(
             raise ValueError(
                 f"initial_points: shape {extra.shape}; expected (m x {q}) with m < {n0}"
             )
+        _check_finite("initial_points", extra)
         x = space_filling_design(
             n0 - len(extra), b, derived_seed(settings.seed, 0, 0), settings.design_method
         )
@@ -260,6 +315,7 @@ def calibrate(
         x = np.array(design, dtype=np.float64, copy=True)
         if x.ndim != 2 or x.shape[1] != q or not 2 <= x.shape[0] <= budget:
             raise ValueError(f"design: shape {x.shape}; expected (n0 x {q}), 2 <= n0 <= {budget}")
+        _check_finite("design", x)
         if np.any(x < b[0]) or np.any(x > b[1]):
             raise ValueError("design: points outside the bounds C_w")
         n0 = x.shape[0]
@@ -267,6 +323,7 @@ def calibrate(
         main_budget = budget - n_check
     y = evaluate_checked(evaluate, x)
     bar.update(n0)
+    _check_design_values(y)
     box = b.copy()
     phase: Phase = "ego"
     ego_cap = n0 + int(settings.max_ego_fraction * (main_budget - n0))
@@ -391,6 +448,8 @@ def calibrate(
         modes=int(diag.get("modes", 1) or 1),
         sampler=str(diag.get("sampler", "random_walk")),
         draws_sd=draws_sd,
+        evaluated_unit=(x - b[0]) / (b[1] - b[0]),
+        evaluated_ok=np.isfinite(y),
     )
     logger.info(reliability.sentence)
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)

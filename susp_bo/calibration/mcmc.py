@@ -319,8 +319,27 @@ def chain_diagnostics(draws: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         draws: (n_chains x n_draws x q) draws.
 
     Returns:
-        (r_hat (q,), ess (q,)).
+        (r_hat (q,), ess (q,)). Both are NaN for a constant component (a pinned parameter,
+        0 / 0), which leaves the others' as they are alone (Pyro's batched ESS turns every
+        component's NaN when one is constant).
+
+    Raises:
+        ValueError: ``draws`` is not 3-D or has fewer than 4 draws per chain (the split
+            R-hat halves every chain and needs two draws in each half).
     """
+    if draws.ndim != 3 or draws.shape[1] < 4:
+        raise ValueError(
+            f"draws: shape {tuple(draws.shape)} is not allowed; expected (n_chains x n_draws "
+            "x q) with n_draws >= 4 (the split R-hat needs 4 draws per chain)"
+        )
+    q = draws.shape[2]
+    constant = torch.all(draws.reshape(-1, q) == draws[0, 0], dim=0)
+    if bool(constant.any()):
+        r_hat = torch.full((q,), math.nan, dtype=draws.dtype)
+        ess = torch.full((q,), math.nan, dtype=draws.dtype)
+        if not bool(constant.all()):
+            r_hat[~constant], ess[~constant] = chain_diagnostics(draws[:, :, ~constant])
+        return r_hat, ess
     r_hat = pyro_stats.split_gelman_rubin(draws, chain_dim=0, sample_dim=1)
     ess = pyro_stats.effective_sample_size(draws, chain_dim=0, sample_dim=1)
     return r_hat, ess

@@ -32,13 +32,26 @@ _BINS = 2048
 
 
 def kde_bandwidth(x: np.ndarray) -> float:
-    """Silverman's rule 0.9 min(sd, IQR/1.34) n^(−1/5) (> 0 even for constant x)."""
+    """Silverman's rule 0.9 min(sd, IQR/1.34) n^(−1/5) (> 0 even for constant x).
+
+    Constant draws (a pinned parameter) have an sd of 0 or, from rounding in the mean, of
+    a few ulps; either way the spread is then taken as 1e-6 of the value's magnitude (at
+    least 1e-6), so that the binned KDE's grid (:func:`marginal_density`) has distinct bins.
+    """
     x = np.asarray(x, dtype=np.float64)
     sd = float(np.std(x))
     iqr = float(np.subtract(*np.percentile(x, [75, 25])))
     spread = min(sd, iqr / 1.34) if iqr > 0 else sd
-    spread = spread if spread > 0 else max(abs(float(np.mean(x))), 1.0) * 1e-6
+    if not 0.9 * spread * x.size ** (-0.2) > _resolvable_bandwidth(x):
+        spread = max(abs(float(np.mean(x))), 1.0) * 1e-6
     return 0.9 * spread * x.size ** (-0.2)
+
+
+def _resolvable_bandwidth(x: np.ndarray) -> float:
+    """The least bandwidth whose binned KDE grid (12 h over ``_BINS`` bins around ``x``)
+    has bins 16 ulps of the values wide; narrower ones are not distinct in float64."""
+    scale = float(np.max(np.abs(x))) if x.size else 0.0
+    return 16.0 * float(np.spacing(scale)) * _BINS / 12.0
 
 
 def marginal_density(
@@ -191,11 +204,30 @@ def summarize(
             draws is not known and the joint MAP is taken as the draw mean's nearest draw.
 
     Returns:
-        The :class:`PosteriorSummary` in physical units.
+        The :class:`PosteriorSummary` in physical units. A constant component (a pinned
+        parameter) is summarised as that value; its R-hat and ESS are NaN.
+
+    Raises:
+        ValueError: shapes that disagree, fewer than 4 draws per chain (the split R-hat),
+            draws outside [0, 1] or NaN, or a repeated name.
     """
     d = np.asarray(draws_unit, dtype=np.float64)
-    if d.ndim != 3 or d.shape[2] != bounds.shape[1] or len(names) != d.shape[2]:
+    bounds = np.asarray(bounds, dtype=np.float64)
+    check_names(names)
+    if d.ndim != 3 or bounds.ndim != 2 or d.shape[2] != bounds.shape[1] or len(names) != d.shape[2]:
         raise ValueError(f"draws_unit: shape {d.shape}, expected (chains x draws x {len(names)})")
+    if d.shape[1] < 4:
+        raise ValueError(
+            f"draws_unit: {d.shape[1]} draws per chain is not allowed; expected >= 4 (the split "
+            "R-hat halves every chain)"
+        )
+    if not np.all((d >= 0.0) & (d <= 1.0)):  # NaN fails both
+        bad = d[~((d >= 0.0) & (d <= 1.0))]
+        raise ValueError(
+            f"draws_unit: {bad.size} values outside the unit cube [0, 1] (e.g. "
+            f"{float(bad[0])!r}) are not allowed; expected unit-cube draws (physical ones map "
+            "to it by the bounds)"
+        )
     q = d.shape[2]
     flat = from_unit(d.reshape(-1, q), bounds)
     r_hat, ess = chain_diagnostics(torch.as_tensor(d))
@@ -203,7 +235,9 @@ def summarize(
         jmap = from_unit(joint_map(d.reshape(-1, q), log_density), bounds)
     else:
         centre = flat.mean(0)
-        jmap = flat[np.argmin(np.sum(((flat - centre) / flat.std(0)) ** 2, axis=1))]
+        sd = flat.std(0)
+        sd = np.where(sd > 0.0, sd, 1.0)  # a constant parameter adds 0 to every distance
+        jmap = flat[np.argmin(np.sum(((flat - centre) / sd) ** 2, axis=1))]
     mmap = np.array([marginal_map(flat[:, k], bounds[:, k]) for k in range(q)])
     delta = np.quantile(np.abs(flat - mmap), 0.95, axis=0)
     interval = np.column_stack(
@@ -223,6 +257,22 @@ def summarize(
     )
 
 
+def check_names(names: Sequence[str], argument: str = "names") -> None:
+    """Refuses parameter names that repeat (each names one variable of the results).
+
+    Raises:
+        ValueError: naming ``argument`` and the first repeated name.
+    """
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise ValueError(
+                f"{argument}: {list(names)!r} is not allowed: {name!r} appears more than once; "
+                "expected distinct parameter names"
+            )
+        seen.add(name)
+
+
 def to_inference_data(draws: np.ndarray, names: Sequence[str]) -> Any:
     """ArviZ ``InferenceData`` with one posterior variable per parameter.
 
@@ -232,12 +282,17 @@ def to_inference_data(draws: np.ndarray, names: Sequence[str]) -> Any:
 
     Returns:
         ``arviz.InferenceData`` (requires the optional ``arviz`` dependency).
+
+    Raises:
+        ValueError: a shape that disagrees with ``names``, or a repeated name (ArviZ would
+            keep one variable of two named alike).
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)  # arviz announces its refactor on import
         import arviz as az
 
         d = np.asarray(draws, dtype=np.float64)
+        check_names(names)
         if d.ndim != 3 or d.shape[2] != len(names):
             raise ValueError(f"draws: shape {d.shape}, expected (chains x draws x {len(names)})")
         return az.from_dict(posterior={name: d[:, :, k] for k, name in enumerate(names)})

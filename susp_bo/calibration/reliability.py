@@ -33,6 +33,12 @@ Rules (each a pure function of numbers, testable alone):
   *only* reason, the loop has finished by its own criteria and more budget alone
   is not the remedy; ``susp-bo diagnose`` accepts such a calibration (a finished
   fit that misses the data is exactly what it examines).
+- ``failed_region`` (:func:`failed_region`): the posterior reaches where the simulator
+  failed — a held-out check simulation at the posterior's edges failed, or more than
+  ``share`` of the reported draws lie nearer (in the unit cube of C_w) to a failed
+  evaluation than to a successful one. The surrogate fills a failed point with the
+  lowest finite log L, so that part of the posterior rests on a stand-in value, not on
+  a simulation.
 - ``at_bound`` (:func:`at_bound`): more than ``mass`` of a parameter's posterior
   draws sit within ``strip`` (fraction of the admissible width, at most half a
   posterior sd) of one bound —
@@ -46,8 +52,9 @@ Rules (each a pure function of numbers, testable alone):
   (``overconfident``: log L higher than predicted, the real posterior is wider;
   ``underconfident``: lower, narrower; ``mixed``: both, misplaced or misshapen).
 - ``surrogate_unchecked``: no held-out check ran (``check_points = 0`` or no
-  budget left for it). Nothing then tests the surrogate posterior against the
-  simulator, so the result is not trusted on the surrogate's word alone.
+  budget left for it), or none of its simulations succeeded. Nothing then tests the
+  surrogate posterior against the simulator, so the result is not trusted on the
+  surrogate's word alone.
 - ``search_box_edge`` (:func:`.trust_region.box_edge`): with a trust region, the
   final posterior presses against an inner face of the search box, which cut it.
 - ``poor_mixing`` (:func:`poor_mixing`): split R-hat above ``r_hat_max`` (1.05) or
@@ -87,6 +94,7 @@ ORDER = (
     "budget_too_small",
     "not_converged",
     "below_expected_fit",
+    "failed_region",
     "at_bound",
     "surrogate_misfit",
     "surrogate_unchecked",
@@ -149,7 +157,16 @@ class Reliability:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Reliability:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Raises:
+            ValueError: ``data`` is not a mapping with a ``verdict``.
+        """
+        if not isinstance(data, Mapping) or "verdict" not in data:
+            raise ValueError(
+                f"reliability: {data!r} is not allowed; expected an object with a 'verdict' "
+                "('trusted' or 'not_trusted'), as result.json['reliability'] holds"
+            )
         return cls(
             verdict=data["verdict"],
             reasons=tuple(data.get("reasons", ())),
@@ -264,6 +281,99 @@ def below_expected_fit(
     }
 
 
+def checked_expected_at_truth(value: object) -> tuple[float, float] | None:
+    """``expected_at_truth`` as (mean, sd) floats, or None.
+
+    Raises:
+        ValueError: not a pair of numbers with a finite mean and a finite sd >= 0.
+    """
+    if value is None:
+        return None
+    try:
+        mean, sd = (float(v) for v in value)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"expected_at_truth: {value!r} is not allowed; expected (mean, sd) of log L at "
+            "the true parameters in nats, two numbers, or None"
+        ) from None
+    if not (math.isfinite(mean) and math.isfinite(sd) and sd >= 0):
+        raise ValueError(
+            f"expected_at_truth: {value!r} is not allowed; expected a finite mean and a "
+            "finite sd >= 0 (nats)"
+        )
+    return mean, sd
+
+
+def failed_region(
+    draws_unit: np.ndarray,
+    evaluated_unit: np.ndarray,
+    evaluated_ok: np.ndarray,
+    check: SurrogateCheck | None,
+    *,
+    share: float = 0.05,
+    count: int = 2048,
+) -> tuple[Reason | None, dict[str, Any]]:
+    """``failed_region`` when the posterior reaches where the simulator failed.
+
+    Args:
+        draws_unit: (m x q) posterior draws in the unit cube of C_w.
+        evaluated_unit: (n x q) every evaluated point, same cube.
+        evaluated_ok: (n,) True where log L came back finite.
+        check: the held-out check (its failed points count), None when none ran.
+        share: the rule fires when more than this share of the draws lies nearer to a
+            failed evaluation than to a successful one.
+        count: draws looked at (evenly spaced: deterministic).
+
+    Returns:
+        (the reason or None, evidence: ``failed_evaluations``, ``failed_check_points``,
+        ``draws_near_failed`` — the share, None with no draw or no failure).
+    """
+    ok = np.asarray(evaluated_ok, dtype=bool)
+    failed_checks = 0 if check is None else int(np.sum(~np.isfinite(check.observed)))
+    near = None
+    u = np.asarray(draws_unit, dtype=np.float64)
+    if (~ok).any() and ok.any() and u.shape[0]:
+        idx = np.unique(np.linspace(0, u.shape[0] - 1, min(count, u.shape[0])).round().astype(int))
+        x = np.asarray(evaluated_unit, dtype=np.float64)
+        nearest = np.concatenate(  # elementwise (no BLAS: the same bits on any thread count)
+            [
+                np.argmin(((u[chunk, None, :] - x[None, :, :]) ** 2).sum(-1), axis=1)
+                for chunk in np.array_split(idx, max(1, idx.size // 256))
+            ]
+        )
+        near = float(np.mean(~ok[nearest]))
+    elif (~ok).any() and u.shape[0]:
+        near = 1.0
+    evidence = {
+        "failed_evaluations": int(np.sum(~ok)),
+        "failed_check_points": failed_checks,
+        "draws_near_failed": near,
+    }
+    findings = []
+    if failed_checks:
+        n_check = len(check.observed) if check is not None else 0
+        findings.append(
+            f"{failed_checks} of the {n_check} held-out check simulations at the posterior's "
+            "edges failed"
+        )
+    if near is not None and near > share:
+        findings.append(
+            f"{100 * near:.0f} % of the posterior draws lie nearer to a failed evaluation than "
+            f"to a successful one ({int(np.sum(~ok))} of {ok.size} evaluations failed)"
+        )
+    if not findings:
+        return None, evidence
+    reason: Reason = {
+        "code": "failed_region",
+        "message": (
+            " and ".join(findings) + ": there the posterior rests on the stand-in value the "
+            "surrogate gives a failed simulation (the lowest log L seen), not on the model"
+        ),
+        **evidence,
+    }
+    return reason, evidence
+
+
 def at_bound(
     draws_unit: np.ndarray,
     names: Sequence[str],
@@ -329,6 +439,14 @@ def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> 
             "message": (
                 "the surrogate posterior was not checked against held-out simulations "
                 "(check_points = 0 or no budget left for the check)"
+            ),
+        }
+    if not np.isfinite(check.observed).any():
+        return {
+            "code": "surrogate_unchecked",
+            "message": (
+                f"none of the {len(check.observed)} held-out check simulations succeeded, so "
+                "nothing tested the surrogate posterior against the simulator"
             ),
         }
     if check.verdict == "ok":
@@ -434,6 +552,8 @@ def assess(
     modes: int = 1,
     sampler: str = "random_walk",
     draws_sd: float = math.nan,
+    evaluated_unit: np.ndarray | None = None,
+    evaluated_ok: np.ndarray | None = None,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -444,9 +564,15 @@ def assess(
         sampler: the kernel whose draws are assessed ("random_walk" or "hmc"; the
             trusted sentence names HMC).
         draws_sd: mean sd[log L̃] (nats) over the reported draws (:func:`not_converged`).
+        evaluated_unit: (n x q) every evaluated point in the unit cube of C_w, and
+        evaluated_ok: (n,) True where its log L was finite (:func:`failed_region`; None:
+            no evaluation known to have failed but the check's).
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
+    if evaluated_unit is None or evaluated_ok is None:
+        evaluated_unit, evaluated_ok = np.empty((0, q)), np.empty(0, dtype=bool)
+    failed, failure_evidence = failed_region(u, evaluated_unit, evaluated_ok, check)
     found = [
         budget_too_small(budget, requirement),
         not_converged(
@@ -459,6 +585,7 @@ def assess(
             draws_sd=draws_sd,
         ),
         below_expected_fit(best_log_likelihood, expected_at_truth),
+        failed,
         at_bound(u, names, bounds),
         surrogate_misfit(check),
         poor_mixing(r_hat, ess, names),
@@ -478,12 +605,13 @@ def assess(
         "last_criterion": float(last_criterion) if math.isfinite(last_criterion) else None,
         "expected_at_truth": None if expected_at_truth is None else list(expected_at_truth),
         "check_verdict": None if check is None else check.verdict,
-        "check_points": 0 if check is None else len(check.observed),
+        "check_points": 0 if check is None else int(np.sum(np.isfinite(check.observed))),
         "r_hat_max": float(np.max(r_hat)),
         "ess_min": float(np.min(ess)),
         "modes": int(modes),
         "sampler": sampler,
         "draws_sd_nats": float(draws_sd) if math.isfinite(draws_sd) else None,
+        **failure_evidence,
     }
     return Reliability(
         verdict="not_trusted" if reasons else "trusted",

@@ -16,6 +16,9 @@ _ADVICE = {
     "not_converged": "rerun with --resume --budget {more}",
     "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
+    "failed_region": "look at the failed evaluations (the log, evaluations.sqlite): narrow "
+    "the admissible interval to where the simulator runs, or make the failing simulations "
+    "run, then rerun",
     "at_bound": "widen that parameter's admissible interval if its value may lie outside, "
     "or rerun with --resume --budget {more}",
     "surrogate_misfit": "rerun with --resume --budget {more}",

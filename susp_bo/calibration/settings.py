@@ -7,6 +7,7 @@ its name, its value and what is allowed before any evaluation runs.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 from susp_bo.calibration.basin_search import BasinSettings
@@ -14,16 +15,65 @@ from susp_bo.calibration.design import DesignMethod
 from susp_bo.calibration.sampling import SAMPLERS, Backend, Estimator, Sampler
 from susp_bo.calibration.surrogate import SurrogateSettings
 
+MIN_DRAWS_PER_CHAIN = 4
+"""Fewest draws per chain the split R-hat (:func:`susp_bo.calibration.mcmc.chain_diagnostics`,
+Pyro's ``split_gelman_rubin``) works on: each chain is split into two halves of >= 2 draws."""
+
+_OPTIONAL = frozenset({"mcmc_seed", "max_evaluations", "initial_design_size", "num_threads"})
+"""The integer fields that may also be None."""
+
+
+def min_mcmc_samples(sampler: str) -> int:
+    """The fewest ``mcmc_samples`` that ``sampler`` can run with.
+
+    Every chain it returns needs :data:`MIN_DRAWS_PER_CHAIN` draws for the split R-hat of
+    the summary and of "auto"'s mixing test. The random walk keeps ``mcmc_samples`` draws
+    per chain; HMC (``"hmc"``, and ``"auto"`` when the random walk does not mix) keeps
+    ``mcmc_samples // 2`` (:func:`susp_bo.calibration.sampling.sample_surrogate_posterior`).
+    """
+    return MIN_DRAWS_PER_CHAIN if sampler == "random_walk" else 2 * MIN_DRAWS_PER_CHAIN
+
+
+def _samples_reason(sampler: str) -> str:
+    """Why ``sampler`` needs :func:`min_mcmc_samples` draws (the end of an error message)."""
+    if sampler == "random_walk":
+        return f" (the split R-hat needs {MIN_DRAWS_PER_CHAIN} draws per chain)"
+    return (
+        f" (with mcmc_sampler {sampler!r} HMC keeps half the draws per chain and the split "
+        f"R-hat needs {MIN_DRAWS_PER_CHAIN})"
+    )
+
+
+def _check_integer(name: str, value: object, minimum: int, optional: bool, why: str) -> None:
+    """Refuses ``value`` unless it is an integer >= ``minimum`` (or None where ``optional``).
+
+    A float is refused even when integral (``200.0``), and so is a bool: the loop passes
+    these on to torch and numpy, which fail on them only after the budget is spent, and a
+    silent conversion would hide a mistake in the caller.
+    """
+    if optional and value is None:
+        return
+    allowed = f"{'None or ' if optional else ''}an integer >= {minimum}{why}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(
+            f"{name}: {value!r} ({type(value).__name__}) is not allowed; expected {allowed}"
+        )
+    if value < minimum:
+        raise ValueError(f"{name}: {value!r} is not allowed; expected {allowed}")
+
 
 @dataclass(frozen=True)
 class CalibrationSettings:
     """Settings of :func:`calibrate` (defaults suit q ≈ 2–10).
 
+    Every integer field must be a Python or NumPy integer (not a float, even an integral
+    one such as ``200.0``, and not a bool).
+
     Args:
-        seed: master seed (design, surrogate fits, acquisition, refinement).
-        mcmc_seed: seed of the final MCMC; None derives it from ``seed``. A different
-            value re-draws the posterior on the same surrogate (a cheap check of
-            Monte Carlo error) without changing any simulator evaluation.
+        seed: master seed (design, surrogate fits, acquisition, refinement), an integer >= 0.
+        mcmc_seed: seed of the final MCMC (an integer >= 0); None derives it from ``seed``.
+            A different value re-draws the posterior on the same surrogate (a cheap check
+            of Monte Carlo error) without changing any simulator evaluation.
         batch_size: points proposed per iteration (parallel simulator calls), >= 1.
         max_evaluations: budget of log L evaluations, design included; None = 50 (q + 2).
         initial_design_size: design size; None = max(10, 5 q).
@@ -54,7 +104,9 @@ class CalibrationSettings:
             down to 0.005; a few seconds on the surrogate, which is cheap.
         mcmc_warmup: warm-up (adaptation) steps per chain (pooled over chains, so
             many chains need few steps).
-        mcmc_samples: kept steps per chain.
+        mcmc_samples: kept steps per chain: >= 4 with ``mcmc_sampler="random_walk"``, >= 8
+            otherwise (HMC keeps half as many; the split R-hat needs 4 a chain:
+            :func:`min_mcmc_samples`).
         mcmc_backend: "vectorized" (plain torch loop) or "pyro" (pyro.infer.MCMC); same draws.
         mcmc_sampler: "auto" (default): the random-walk kernel, and reflective HMC on the
             surrogate's gradient when the random walk found one mode but did not mix
@@ -128,31 +180,30 @@ class CalibrationSettings:
     num_threads: int | None = 1
 
     def __post_init__(self) -> None:
-        positive = {
-            "batch_size": self.batch_size,
-            "mcmc_chains": self.mcmc_chains,
-            "mcmc_samples": self.mcmc_samples,
-            "candidate_count": self.candidate_count,
-            "acquisition_restarts": self.acquisition_restarts,
-            "acquisition_raw_samples": self.acquisition_raw_samples,
+        if self.mcmc_sampler not in SAMPLERS:  # first: the least mcmc_samples depends on it
+            raise ValueError(
+                f"mcmc_sampler: {self.mcmc_sampler!r}, expected one of {', '.join(SAMPLERS)}"
+            )
+        minimum = {
+            "seed": 0,
+            "mcmc_seed": 0,
+            "batch_size": 1,
+            "max_evaluations": 2,
+            "initial_design_size": 2,
+            "check_points": 0,
+            "mcmc_chains": 1,
+            "mcmc_warmup": 0,
+            "mcmc_samples": min_mcmc_samples(self.mcmc_sampler),
+            "candidate_count": 1,
+            "acquisition_restarts": 1,
+            "acquisition_raw_samples": 1,
+            "num_threads": 1,
         }
-        for name, value in positive.items():
-            if int(value) != value or value < 1:
-                raise ValueError(f"{name}: {value} must be an integer >= 1")
-        for name in ("max_evaluations", "initial_design_size"):
-            v = getattr(self, name)
-            if v is not None and (int(v) != v or v < 2):
-                raise ValueError(f"{name}: {v} must be None or an integer >= 2")
-        if self.num_threads is not None and (
-            int(self.num_threads) != self.num_threads or self.num_threads < 1
-        ):
-            raise ValueError(f"num_threads: {self.num_threads} must be None or an integer >= 1")
-        if int(self.check_points) != self.check_points or self.check_points < 0:
-            raise ValueError(f"check_points: {self.check_points} must be an integer >= 0")
+        why = {"mcmc_samples": _samples_reason(self.mcmc_sampler)}
+        for name, least in minimum.items():
+            _check_integer(name, getattr(self, name), least, name in _OPTIONAL, why.get(name, ""))
         if not self.check_tolerance > 0.0:
             raise ValueError(f"check_tolerance: {self.check_tolerance} must be > 0 nats")
-        if self.mcmc_warmup < 0:
-            raise ValueError(f"mcmc_warmup: {self.mcmc_warmup} must be >= 0")
         if not self.ei_tolerance > 0.0:
             raise ValueError(f"ei_tolerance: {self.ei_tolerance} must be > 0")
         if not self.trust_region_half_width_sd > 0.0:
@@ -175,7 +226,3 @@ class CalibrationSettings:
             raise ValueError(f"estimator: {self.estimator!r}, expected plug_in/mean_log/expected")
         if self.mcmc_backend not in ("vectorized", "pyro"):
             raise ValueError(f"mcmc_backend: {self.mcmc_backend!r}, expected vectorized/pyro")
-        if self.mcmc_sampler not in SAMPLERS:
-            raise ValueError(
-                f"mcmc_sampler: {self.mcmc_sampler!r}, expected one of {', '.join(SAMPLERS)}"
-            )

@@ -12,6 +12,7 @@ real one go through exactly the same path.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 
 import numpy as np
@@ -46,7 +47,7 @@ def synthesize_runs(
         truth: true parameter values (any named parameter of the rig); None keeps
             the rig file's values.
         nu: number of runs (independent track stretches), >= 1.
-        seed: master seed; run ``i`` uses :func:`track_seed(seed, i)`.
+        seed: master seed, an integer >= 0; run ``i`` uses :func:`track_seed(seed, i)`.
         noise_m_s2: standard deviation of white sensor noise added to every
             channel (m/s²), >= 0.
         speed_m_s: constant speed (m/s); None takes the rig's default.
@@ -58,12 +59,14 @@ def synthesize_runs(
         ``nu`` runs, with the truth, seed, noise and rig name in their metadata.
 
     Raises:
-        ValueError: bad ``nu``, ``noise_m_s2``, speed or duration, a truth the
+        ValueError: bad ``nu``, ``seed``, ``noise_m_s2``, speed or duration, a truth the
             rig refuses, or a design that does not cover the runs — all before any
             simulation runs.
     """
     if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
         raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ValueError(f"seed: got {seed!r}; expected an integer >= 0")
     if not (math.isfinite(noise_m_s2) and noise_m_s2 >= 0.0):
         raise ValueError(f"noise_m_s2: got {noise_m_s2}; expected a finite value >= 0 m/s^2")
     changes: dict[str, float] = {}

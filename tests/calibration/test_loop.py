@@ -216,3 +216,67 @@ def test_bad_evaluate_output_and_names() -> None:
             _small(),
             progress=False,
         )
+
+
+BOX = np.array([[0.0, 0.0], [1.0, 1.0]])
+TINY = CalibrationSettings(
+    mcmc_chains=32, mcmc_warmup=200, mcmc_samples=400, candidate_count=128,
+    acquisition_restarts=2, acquisition_raw_samples=64, max_evaluations=40,
+)  # fmt: skip
+
+
+class _Counting:
+    """An evaluator that records the batches it was called with."""
+
+    def __init__(self, values: Callable[[np.ndarray, int], np.ndarray]) -> None:
+        self.values = values
+        self.batches: list[int] = []
+
+    def __call__(self, w: np.ndarray) -> np.ndarray:
+        self.batches.append(w.shape[0])
+        return self.values(w, len(self.batches))
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        (
+            lambda w, call: np.full(len(w), -5.0),
+            r"log L is constant \(-5\.0\) over the 10 finite evaluations of the design: the "
+            r"data do not inform the parameters or the evaluator ignores them",
+        ),
+        (
+            lambda w, call: np.where(np.arange(len(w)) < 4, np.nan, -5.0),
+            r"log L is constant \(-5\.0\) over the 6 finite evaluations of the design \(4 failed\)",
+        ),
+        (
+            lambda w, call: np.where(np.arange(len(w)) == 0, -3.0, np.nan),
+            r"only 1 of the 10 log L evaluations of the design succeeded \(log L = -3\.0\)",
+        ),
+    ],
+)
+def test_a_design_that_cannot_be_fitted_raises_after_the_design(
+    values: Callable[[np.ndarray, int], np.ndarray], message: str
+) -> None:
+    """These crashed with botorch's ModelFittingError; now named, with no evaluation more."""
+    evaluate = _Counting(values)
+    with pytest.raises(RuntimeError, match=message):
+        calibrate(evaluate, BOX, ["a", "b"], TINY, progress=False)
+    assert evaluate.batches == [10]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_design_points_are_refused_before_any_evaluation(bad: float) -> None:
+    """NaN passed the bounds check (NaN < lower is False) and reached evaluate."""
+    evaluate = _Counting(lambda w, call: -np.sum(w**2, axis=1))
+    design = np.array([[0.1, 0.2], [0.5, bad], [0.7, 0.7]])
+    with pytest.raises(ValueError, match=rf"design: row 1 is \[0\.5, {bad!r}\]; NaN and infinite"):
+        calibrate(evaluate, BOX, ["a", "b"], TINY, progress=False, design=design)
+    assert evaluate.batches == []
+
+
+def test_repeated_names_are_refused_before_any_evaluation() -> None:
+    evaluate = _Counting(lambda w, call: -np.sum(w**2, axis=1))
+    with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' appears more than once"):
+        calibrate(evaluate, BOX, ["a", "a"], TINY, progress=False)
+    assert evaluate.batches == []

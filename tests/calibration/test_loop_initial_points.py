@@ -33,3 +33,19 @@ def test_too_many_initial_points_are_refused() -> None:
     with pytest.raises(ValueError, match="initial_points"):
         calibrate(target, target.bounds, target.names, SMALL, progress=False,
                   initial_points=np.zeros((8, 2)))  # fmt: skip
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_initial_points_are_refused_before_any_evaluation(bad: float) -> None:
+    """NaN reached evaluate (np.clip keeps it), inf was silently clipped to the bound."""
+    target = TARGETS["banana_2d"]()
+    calls: list[int] = []
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        calls.append(w.shape[0])
+        return target(w)
+
+    with pytest.raises(ValueError, match=r"initial_points: row 1 is .*NaN and infinite"):
+        calibrate(evaluate, target.bounds, target.names, SMALL, progress=False,
+                  initial_points=np.array([[0.0, 0.0], [bad, 0.0]]))  # fmt: skip
+    assert calls == []

@@ -136,3 +136,22 @@ def test_invalid_arguments() -> None:
         RandomWalkMetropolis(gaussian_potential, _starts(2, Q, 0), target_accept=1.5)
     with pytest.raises(ValueError, match="finite"):
         RandomWalkMetropolis(lambda w: torch.full((w.shape[0],), math.inf), _starts(2, Q, 0))
+
+
+@pytest.mark.parametrize("shape", [(4, 3, 2), (4, 0, 2), (4, 10)])
+def test_chain_diagnostics_needs_four_draws_per_chain(shape: tuple[int, ...]) -> None:
+    """Pyro's split R-hat asserts >= 4 draws per chain: a bare AssertionError before."""
+    with pytest.raises(ValueError, match=r"draws: shape .* n_draws >= 4"):
+        chain_diagnostics(torch.zeros(shape, dtype=torch.float64))
+
+
+def test_a_constant_component_leaves_the_others_diagnostics_alone() -> None:
+    """A pinned parameter has no R-hat or ESS (NaN); Pyro's batched ESS made every one NaN."""
+    moving = torch.as_tensor(np.random.default_rng(0).uniform(size=(4, 100, 1)))
+    pinned = torch.full((4, 100, 1), 0.3, dtype=torch.float64)
+    r_hat, ess = chain_diagnostics(torch.cat([pinned, moving], dim=2))
+    alone = chain_diagnostics(moving)
+    assert torch.isnan(r_hat[0]) and torch.isnan(ess[0])
+    assert torch.equal(r_hat[1:], alone[0]) and torch.equal(ess[1:], alone[1])
+    r_hat, ess = chain_diagnostics(pinned)
+    assert torch.isnan(r_hat).all() and torch.isnan(ess).all()

@@ -87,3 +87,45 @@ def test_summary_validation() -> None:
             np.zeros(1),
             np.zeros(1),
         )
+
+
+@pytest.mark.parametrize("n_draws", [0, 1, 3])
+def test_summary_needs_four_draws_per_chain(n_draws: int, rng: np.random.Generator) -> None:
+    with pytest.raises(ValueError, match=rf"draws_unit: {n_draws} draws per chain .* >= 4"):
+        summarize(rng.uniform(size=(4, n_draws, 2)), BOUNDS, ["a", "b"])
+
+
+@pytest.mark.parametrize(("shift", "shown"), [(5.0, "outside the unit cube"), (np.nan, "nan")])
+def test_summary_refuses_draws_outside_the_unit_cube(
+    shift: float, shown: str, rng: np.random.Generator
+) -> None:
+    """Outside draws gave an inverted interval95 ([3.6, 1.0]), NaN ones a numpy error."""
+    draws = rng.uniform(size=(4, 100, 2))
+    draws[1, 7, 0] += shift
+    with pytest.raises(ValueError, match=rf"draws_unit: 1 values .*{shown}"):
+        summarize(draws, BOUNDS, ["a", "b"])
+
+
+@pytest.mark.parametrize("log_density", [None, lambda u: -((u - 0.3) ** 2).sum(-1)])
+def test_summary_of_a_pinned_parameter(log_density: object, rng: np.random.Generator) -> None:
+    """Constant draws of one parameter crashed numpy's histogram ("Too many bins")."""
+    draws = np.stack([np.full((4, 400), 0.3), rng.uniform(size=(4, 400))], axis=-1)
+    s = summarize(draws, BOUNDS, ["a", "b"], log_density)  # type: ignore[arg-type]
+    pinned = BOUNDS[0, 0] + 0.3 * (BOUNDS[1, 0] - BOUNDS[0, 0])
+    assert s.marginal_map[0] == pytest.approx(pinned, abs=1e-6)
+    np.testing.assert_allclose(s.interval95[0], [pinned, pinned], atol=1e-6)
+    np.testing.assert_allclose(s.equal_tailed95[0], [pinned, pinned], atol=1e-12)
+    assert s.joint_map[0] == pytest.approx(pinned, abs=1e-9) and s.sd[0] < 1e-12
+    assert np.isfinite(s.marginal_map[1]) and np.all(np.isfinite(s.interval95))
+    assert np.isnan(s.r_hat[0]) and np.isnan(s.ess[0])  # no mixing to speak of
+    assert np.isfinite(s.r_hat[1]) and np.isfinite(s.ess[1])
+    assert marginal_map(np.full(1000, 0.3), (0.0, 1.0)) == pytest.approx(0.3, abs=1e-6)
+
+
+def test_repeated_names_are_refused(rng: np.random.Generator) -> None:
+    """to_inference_data kept one variable of two named alike."""
+    draws = rng.uniform(size=(2, 10, 2))
+    with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' appears more than once"):
+        to_inference_data(draws, ["a", "a"])
+    with pytest.raises(ValueError, match=r"names: .*'a' appears more than once"):
+        summarize(draws, BOUNDS, ["a", "a"])

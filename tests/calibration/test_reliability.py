@@ -13,6 +13,8 @@ from susp_bo.calibration.reliability import (
     Reliability,
     at_bound,
     below_expected_fit,
+    checked_expected_at_truth,
+    failed_region,
     multimodal,
     not_converged,
     poor_mixing,
@@ -141,6 +143,61 @@ def test_check_direction_matches_the_signs() -> None:
     assert unchecked is not None and unchecked["code"] == "surrogate_unchecked"
 
 
+def test_failed_region_fires_on_failed_check_points_or_draws_nearest_to_failures() -> None:
+    grid = np.linspace(0.05, 0.95, 7)
+    x = np.array([(a, b) for a in grid for b in grid])  # 49 evaluated points
+    ok = x[:, 0] <= 0.6  # every point with a > 0.6 failed
+    left = np.random.default_rng(0).uniform([0.0, 0.0], [0.5, 1.0], size=(1000, 2))
+    reason, evidence = failed_region(left, x, ok, None)
+    assert reason is None  # the posterior lies where simulations ran
+    assert evidence == {
+        "failed_evaluations": int((~ok).sum()),
+        "failed_check_points": 0,
+        "draws_near_failed": 0.0,
+    }
+    spread = np.random.default_rng(0).uniform(0.0, 1.0, size=(1000, 2))
+    reason, evidence = failed_region(spread, x, ok, None)
+    assert reason is not None and reason["code"] == "failed_region"
+    assert 0.3 < evidence["draws_near_failed"] < 0.45  # a > ~0.65 of the unit square
+    assert "nearer to a failed evaluation" in reason["message"]
+    # no failure at all: nothing to say, and no share measured
+    assert failed_region(spread, x, np.ones(len(x), bool), None) == (
+        None,
+        {"failed_evaluations": 0, "failed_check_points": 0, "draws_near_failed": None},
+    )
+    # one failed check simulation at the posterior's edge is enough
+    check = SurrogateCheck(
+        np.full((4, 2), 0.3), np.zeros(4), np.ones(4), np.array([0.1, np.nan, -0.2, 0.0]), 1.0
+    )
+    reason, evidence = failed_region(left, x, np.ones(len(x), bool), check)
+    assert reason is not None and "1 of the 4 held-out check simulations" in reason["message"]
+    assert evidence["failed_check_points"] == 1
+
+
+def test_a_check_whose_simulations_all_failed_is_unchecked_not_ok() -> None:
+    failed = SurrogateCheck(np.full((3, 2), 0.3), np.zeros(3), np.ones(3), np.full(3, np.nan), 1.0)
+    reason = surrogate_misfit(failed)
+    assert reason is not None and reason["code"] == "surrogate_unchecked"
+    assert "none of the 3 held-out check simulations succeeded" in reason["message"]
+
+
+def test_expected_at_truth_is_checked() -> None:
+    assert checked_expected_at_truth(None) is None
+    assert checked_expected_at_truth((1, 0.5)) == (1.0, 0.5)
+    for bad in ((float("nan"), 1.0), (0.0, -1.0), (0.0, float("inf")), ("a", 1.0), (1.0,), 3.0):
+        with pytest.raises(ValueError, match="expected_at_truth"):
+            checked_expected_at_truth(bad)
+    calls: list[int] = []
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        calls.append(len(w))
+        return bowl(w)
+
+    with pytest.raises(ValueError, match="expected_at_truth"):  # before any evaluation
+        calibrate(evaluate, BOUNDS, NAMES, SETTINGS, progress=False, expected_at_truth=(0, -1))
+    assert calls == []
+
+
 def test_reliability_round_trips_and_validates() -> None:
     r = Reliability(
         "not_trusted",
@@ -158,6 +215,8 @@ def test_reliability_round_trips_and_validates() -> None:
         Reliability("trusted", ({"code": "x", "message": "y"},))
     with pytest.raises(ValueError, match="code"):
         Reliability("not_trusted", ({"message": "y"},))
+    with pytest.raises(ValueError, match=r"reliability: .* 'verdict'"):
+        Reliability.from_dict({})
 
 
 # -- the real loop on targets with a known answer -----------------------------------------------
@@ -298,3 +357,36 @@ def test_multimodal_fires_from_two_separated_modes_and_leads_to_not_trusted() ->
     reason = multimodal(3)
     assert reason is not None and reason["code"] == "multimodal" and reason["modes"] == 3
     assert "3 separated modes" in reason["message"]
+
+
+def test_check_simulations_that_all_failed_are_not_a_trusted_check() -> None:
+    """Every held-out check simulation fails (NaN): the check tested nothing."""
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        y = bowl(w)
+        return np.full_like(y, np.nan) if w.shape[0] == SETTINGS.check_points else y
+
+    result = calibrate(evaluate, BOUNDS, NAMES, SETTINGS, progress=False)
+    assert result.check is not None and not np.isfinite(result.check.observed).any()
+    rel = result.reliability
+    assert rel is not None and not rel.trusted
+    assert {"failed_region", "surrogate_unchecked"} <= set(rel.codes)
+    assert rel.evidence["check_points"] == 0
+    assert rel.evidence["failed_check_points"] == SETTINGS.check_points
+
+
+def test_posterior_mass_where_every_simulation_failed_is_not_trusted() -> None:
+    """A broad posterior; every evaluation with a > 0.6 fails: the surrogate's stand-in
+    value there carries a quarter of the mass, which must not come out ``trusted``."""
+
+    def evaluate(w: np.ndarray) -> np.ndarray:
+        y = -0.5 * np.sum(((w - 0.5) / 0.5) ** 2, axis=1)
+        y[w[:, 0] > 0.6] = np.nan
+        return y
+
+    result = calibrate(evaluate, BOUNDS, NAMES, SETTINGS, progress=False)
+    assert np.mean(result.samples.reshape(-1, 2)[:, 0] > 0.6) > 0.1
+    rel = result.reliability
+    assert rel is not None and not rel.trusted and "failed_region" in rel.codes
+    assert rel.evidence["draws_near_failed"] > 0.05
+    assert rel.evidence["failed_evaluations"] == int(np.sum(~np.isfinite(result.y)))
