@@ -61,7 +61,7 @@ from typing import Any
 import tomli_w
 
 from susp_bo.rig.catalog import available_rigs, rig_path
-from susp_bo.rig.schema import did_you_mean, repeated
+from susp_bo.rig.schema import did_you_mean, repeated, repeated_phrase
 from susp_bo.study_sections import (
     SECTIONS,
     BudgetConfig,
@@ -130,8 +130,8 @@ class StudyConfig:
             twice = repeated(names)
             if twice:
                 raise ValueError(
-                    f"parameters: {names!r} is not allowed: {', '.join(map(repr, twice))} "
-                    f"{'is' if len(twice) == 1 else 'are'} given more than once; {allowed}"
+                    f"parameters: {names!r} is not allowed: {repeated_phrase(twice)} given more "
+                    f"than once; {allowed}"
                 )
             object.__setattr__(self, "parameters", tuple(names))
 

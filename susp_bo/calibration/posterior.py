@@ -27,6 +27,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from susp_bo.calibration.design import from_unit
 from susp_bo.calibration.mcmc import chain_diagnostics
+from susp_bo.rig.schema import repeated, repeated_phrase
 
 _BINS = 2048
 
@@ -263,14 +264,12 @@ def check_names(names: Sequence[str], argument: str = "names") -> None:
     Raises:
         ValueError: naming ``argument`` and the first repeated name.
     """
-    seen: set[str] = set()
-    for name in names:
-        if name in seen:
-            raise ValueError(
-                f"{argument}: {list(names)!r} is not allowed: {name!r} appears more than once; "
-                "expected distinct parameter names"
-            )
-        seen.add(name)
+    twice = repeated(names)
+    if twice:
+        raise ValueError(
+            f"{argument}: {list(names)!r} is not allowed: {repeated_phrase(twice)} given more "
+            "than once; expected distinct parameter names"
+        )
 
 
 def to_inference_data(draws: np.ndarray, names: Sequence[str]) -> Any:

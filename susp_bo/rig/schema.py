@@ -63,6 +63,11 @@ def repeated(names: Iterable[str]) -> list[str]:
     return list(again)
 
 
+def repeated_phrase(names: list[str]) -> str:
+    """``'a' is`` or ``'a', 'b' are``: the subject of a "given more than once" message."""
+    return f"{', '.join(map(repr, names))} {'is' if len(names) == 1 else 'are'}"
+
+
 def check_keys(where: str, given: Iterable[str], allowed: Iterable[str]) -> None:
     """Raise ValueError for the first key of ``given`` not in ``allowed``.
 

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.components import is_component_name, split_component_name
-from susp_bo.rig.schema import check_rig_keys, repeated
+from susp_bo.rig.schema import check_rig_keys, repeated, repeated_phrase
 from susp_bo.rig.spec_entries import (
     SIMULATION_LIMITS,
     CalibrationParameter,
@@ -130,9 +130,8 @@ class RigSpec:
         twice = repeated(c.name for c in self.calibration)
         if twice:
             raise ValueError(
-                f"rig {self.name!r}: [[calibration.parameters]] "
-                f"{', '.join(map(repr, twice))} {'is' if len(twice) == 1 else 'are'} listed more "
-                "than once; give each calibration parameter one entry"
+                f"rig {self.name!r}: [[calibration.parameters]] {repeated_phrase(twice)} listed "
+                "more than once; give each calibration parameter one entry"
             )
         for entry in self.calibration:
             if entry.name not in params:
@@ -161,8 +160,8 @@ class RigSpec:
         if twice:
             raise ValueError(
                 f"rig {self.name!r}: [[sensors]]: sensor name{'s' * (len(twice) > 1)} "
-                f"{', '.join(map(repr, twice))} {'is' if len(twice) == 1 else 'are'} given more "
-                "than once; expected one entry per sensor name (channel)"
+                f"{repeated_phrase(twice)} given more than once; expected one entry per sensor "
+                "name (channel)"
             )
 
     def parameter_values(self) -> dict[str, float]:

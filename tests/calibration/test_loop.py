@@ -277,6 +277,6 @@ def test_non_finite_design_points_are_refused_before_any_evaluation(bad: float) 
 
 def test_repeated_names_are_refused_before_any_evaluation() -> None:
     evaluate = _Counting(lambda w, call: -np.sum(w**2, axis=1))
-    with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' appears more than once"):
+    with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' is given more than once"):
         calibrate(evaluate, BOX, ["a", "a"], TINY, progress=False)
     assert evaluate.batches == []

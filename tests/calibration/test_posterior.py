@@ -125,7 +125,7 @@ def test_summary_of_a_pinned_parameter(log_density: object, rng: np.random.Gener
 def test_repeated_names_are_refused(rng: np.random.Generator) -> None:
     """to_inference_data kept one variable of two named alike."""
     draws = rng.uniform(size=(2, 10, 2))
-    with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' appears more than once"):
+    with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' is given more than once"):
         to_inference_data(draws, ["a", "a"])
-    with pytest.raises(ValueError, match=r"names: .*'a' appears more than once"):
+    with pytest.raises(ValueError, match=r"names: .*'a' is given more than once"):
         summarize(draws, BOUNDS, ["a", "a"])

@@ -11,7 +11,7 @@ import pytest
 import tomli_w
 
 from susp_bo.cli import main
-from susp_bo.data.measured import load_runs, save_run
+from susp_bo.data.measured import MeasuredRun, load_runs, save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.spec import load_rig_spec
@@ -331,18 +331,24 @@ def test_a_sigma_table_with_an_unknown_channel_names_it_and_the_allowed_ones(
     assert not (tmp_path / "o").exists()
 
 
+def _data_folder(tmp_path: Path, runs: dict[str, MeasuredRun]) -> Path:
+    """A folder ``tmp_path/data`` holding ``runs`` under their file names."""
+    data = tmp_path / "data"
+    data.mkdir()
+    for name, run in runs.items():
+        save_run(run, data / name)
+    return data
+
+
 def test_runs_at_different_sample_rates_are_named_by_file(
     rigs: dict[str, Path],
     runs_by_rig: dict[str, Path],
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    data = tmp_path / "data"
-    data.mkdir()
     runs = load_runs(runs_by_rig["short_a"])
-    save_run(runs[0], data / "slow.h5")
     fast = dataclasses.replace(runs[1], sample_rate_hz=2 * runs[1].sample_rate_hz)
-    save_run(fast, data / "fast.h5")
+    data = _data_folder(tmp_path, {"slow.h5": runs[0], "fast.h5": fast})
     rate = runs[0].sample_rate_hz
     out = tmp_path / "o"
     _refused(
@@ -378,14 +384,11 @@ def test_a_run_that_does_not_fit_the_band_is_named_by_its_file(
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    data = tmp_path / "data"
-    data.mkdir()
     runs = load_runs(runs_by_rig["short_a"])
-    save_run(runs[0], data / "good.h5")
     short = dataclasses.replace(  # 1 s: shorter than one Welch segment
         runs[1], accelerations_m_s2=runs[1].accelerations_m_s2[:, : int(runs[1].sample_rate_hz)]
     )
-    save_run(short, data / "cut_short.h5")
+    data = _data_folder(tmp_path, {"good.h5": runs[0], "cut_short.h5": short})
     out = tmp_path / "o"
     argv = ["calibrate", str(rigs["short_a"]), str(data), "--out", str(out)]
     _refused(capsys, argv, f"data: {data / 'cut_short.h5'}: ", "Welch segment")
