@@ -187,6 +187,7 @@ def _user_error_types() -> tuple[type[BaseException], ...]:
     modules that load torch and the GP stack (≈ 4 s)."""
     project = (
         ("susp_bo.calibration.study_inputs", "StudyError"),
+        ("susp_bo.calibration.loop", "UninformativeDesignError"),
         ("susp_bo.data.measured", "MeasuredDataError"),
         ("susp_bo.store", "StoreMismatchError"),
         ("susp_bo.store", "StoreFileError"),

@@ -70,3 +70,12 @@ def test_bad_arguments_are_refused_without_loading_torch(
     assert done.stdout.split() == ["2", "False"], done.stderr[-2000:]
     assert all(text in done.stderr for text in expected), done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_an_uninformative_design_is_a_user_error_not_a_traceback() -> None:
+    """A log L that is constant over the design (parameters that do not reach the
+    channels) stops the study with one message and exit code 2."""
+    from susp_bo.calibration.loop import UninformativeDesignError
+    from susp_bo.cli import _user_error_types
+
+    assert issubclass(UninformativeDesignError, _user_error_types())

@@ -32,8 +32,9 @@ Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the r
 for the surrogate they are imputed with the lowest finite log L observed so far
 (recomputed at every refit), which steers the search away from them without
 inventing structure below the data. If the whole initial design fails, or all of it
-but one point, or log L is the same at all of its finite points, ``RuntimeError`` is
-raised after the design, before any more evaluations.
+but one point, or log L is the same at all of its finite points,
+:class:`UninformativeDesignError` (a ``RuntimeError``) is raised after the design, before
+any more evaluations.
 
 Determinism: every random choice (design scrambling, acquisition restarts, QMC
 samplers, hyperparameter restarts, MCMC) is seeded from ``settings.seed`` and the
@@ -105,6 +106,12 @@ def _check_finite(argument: str, points: np.ndarray) -> None:
         )
 
 
+class UninformativeDesignError(RuntimeError):
+    """The design's log L cannot inform a surrogate: every run failed, only one succeeded,
+    or log L is the same at every finite point (raised right after the design; the
+    evaluations made are kept in a study's store)."""
+
+
 def _check_design_values(y: np.ndarray) -> None:
     """Raises as soon as the design's log L cannot inform a surrogate (before any more
     evaluations): every run failed, only one succeeded, or log L is the same everywhere.
@@ -112,26 +119,26 @@ def _check_design_values(y: np.ndarray) -> None:
     Raises:
         ValueError: ``evaluate`` returned +inf (as at every refit:
             :func:`.loop_step.impute_failures`).
-        RuntimeError: naming what happened.
+        UninformativeDesignError: naming what happened.
     """
     if np.any(y == math.inf):
         raise ValueError("evaluate: returned +inf, which is not a valid log-likelihood")
     finite = y[np.isfinite(y)]
     n = y.size
     if finite.size == 0:
-        raise RuntimeError(
+        raise UninformativeDesignError(
             f"every log L evaluation failed (NaN/-inf) at the {n} points of the design: "
             "nothing to fit"
         )
     if finite.size == 1:
-        raise RuntimeError(
+        raise UninformativeDesignError(
             f"only 1 of the {n} log L evaluations of the design succeeded (log L = "
             f"{float(finite[0])!r}); the others failed (NaN/-inf): the surrogate needs at least "
             "two distinct values"
         )
     if np.all(finite == finite[0]):
         failed = f" ({n - finite.size} failed)" if finite.size < n else ""
-        raise RuntimeError(
+        raise UninformativeDesignError(
             f"log L is constant ({float(finite[0])!r}) over the {finite.size} finite "
             f"evaluations of the design{failed}: the data do not inform the parameters or the "
             "evaluator ignores them"
@@ -263,8 +270,8 @@ def calibrate(
             ``settings.allow_small_budget`` is False (before any evaluation).
         ValueError: bad input (names, bounds, ``expected_at_truth`` …; a repeated name;
             NaN or infinite coordinates in ``design`` or ``initial_points``), before any
-            evaluation.
-        RuntimeError: the design's log L cannot be fitted (every evaluation failed, only
+            evaluation; ``evaluate`` returned +inf (when it does).
+        UninformativeDesignError: the design's log L cannot be fitted (every evaluation failed, only
             one succeeded, or log L is constant over it), raised after the design.
     """
     settings = settings or CalibrationSettings()

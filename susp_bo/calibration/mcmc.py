@@ -320,8 +320,8 @@ def chain_diagnostics(draws: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 
     Returns:
         (r_hat (q,), ess (q,)). Both are NaN for a constant component (a pinned parameter,
-        0 / 0), which leaves the others' as they are alone (Pyro's batched ESS turns every
-        component's NaN when one is constant).
+        0 / 0); the other components' values are computed without it (Pyro's batched ESS
+        would turn every component's NaN when one is constant).
 
     Raises:
         ValueError: ``draws`` is not 3-D or has fewer than 4 draws per chain (the split

@@ -35,17 +35,19 @@ _BINS = 2048
 def kde_bandwidth(x: np.ndarray) -> float:
     """Silverman's rule 0.9 min(sd, IQR/1.34) n^(−1/5) (> 0 even for constant x).
 
-    Constant draws (a pinned parameter) have an sd of 0 or, from rounding in the mean, of
-    a few ulps; either way the spread is then taken as 1e-6 of the value's magnitude (at
-    least 1e-6), so that the binned KDE's grid (:func:`marginal_density`) has distinct bins.
+    Constant draws (a pinned parameter, sd 0) take a spread of 1e-6 of the value's
+    magnitude (at least 1e-6). Draws so narrow that the rule's bandwidth is not resolvable
+    in float64 around their value (sd of a few ulps, e.g. from rounding in the mean) get
+    the least resolvable bandwidth instead, so that the binned KDE's grid
+    (:func:`marginal_density`) has distinct bins.
     """
     x = np.asarray(x, dtype=np.float64)
     sd = float(np.std(x))
     iqr = float(np.subtract(*np.percentile(x, [75, 25])))
     spread = min(sd, iqr / 1.34) if iqr > 0 else sd
-    if not 0.9 * spread * x.size ** (-0.2) > _resolvable_bandwidth(x):
+    if not spread > 0:
         spread = max(abs(float(np.mean(x))), 1.0) * 1e-6
-    return 0.9 * spread * x.size ** (-0.2)
+    return max(0.9 * spread * x.size ** (-0.2), _resolvable_bandwidth(x))
 
 
 def _resolvable_bandwidth(x: np.ndarray) -> float:

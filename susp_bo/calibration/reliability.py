@@ -324,6 +324,11 @@ def failed_region(
             failed evaluation than to a successful one.
         count: draws looked at (evenly spaced: deterministic).
 
+    The nearest-point share errs on the side of "not trusted": with few evaluations a
+    failed point's neighbourhood reaches into a posterior that need not reach the failed
+    region itself (a 2-D banana at 60 evaluations, failures beyond its 99.5 % quantile:
+    6.9 % of the draws nearest a failed point; at 200 evaluations 0 %).
+
     Returns:
         (the reason or None, evidence: ``failed_evaluations``, ``failed_check_points``,
         ``draws_near_failed`` — the share, None with no draw or no failure).
@@ -358,7 +363,7 @@ def failed_region(
         )
     if near is not None and near > share:
         findings.append(
-            f"{100 * near:.0f} % of the posterior draws lie nearer to a failed evaluation than "
+            f"{100 * near:.1f} % of the posterior draws lie nearer to a failed evaluation than "
             f"to a successful one ({int(np.sum(~ok))} of {ok.size} evaluations failed)"
         )
     if not findings:
@@ -424,7 +429,8 @@ def at_bound(
 
 
 def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> Reason | None:
-    """``surrogate_misfit`` (check outside its band) or ``surrogate_unchecked`` (no check).
+    """``surrogate_misfit`` (check outside its band) or ``surrogate_unchecked`` (no check
+    ran, or none of its simulations succeeded).
 
     Args:
         check: the held-out check, None when none ran.
@@ -570,6 +576,8 @@ def assess(
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
+    if (evaluated_unit is None) != (evaluated_ok is None):
+        raise ValueError("evaluated_unit, evaluated_ok: give both or neither")
     if evaluated_unit is None or evaluated_ok is None:
         evaluated_unit, evaluated_ok = np.empty((0, q)), np.empty(0, dtype=bool)
     failed, failure_evidence = failed_region(u, evaluated_unit, evaluated_ok, check)

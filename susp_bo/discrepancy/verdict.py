@@ -393,6 +393,16 @@ def not_trusted_sentence(
     """The answer when the calibration is not trusted: why, and what to do."""
     why = "; ".join(str(r.get("message", r.get("code", ""))) for r in reliability.reasons)
     budget = f" --budget {2 * n_evaluations}" if n_evaluations else " --budget N (larger)"
+    if reliability.reasons and reliability.reasons[0].get("code") == "failed_region":
+        return (  # more budget is not the remedy where the simulator fails
+            f"calibration_not_trusted: the calibration in {result_dir} is not trusted ({why}). "
+            "Disagreement between data and model would be read from a posterior that rests on "
+            "failed simulations, so no band is reported as model discrepancy. Repair the "
+            "calibration first: look at the failed evaluations (its log, evaluations.sqlite), "
+            "narrow the admissible interval of the rig file to where the simulator runs or make "
+            "the failing simulations run, calibrate again, then diagnose again (--force runs "
+            "the detection anyway, for experts, labelled as such)."
+        )
     return (
         f"calibration_not_trusted: the calibration in {result_dir} is not trusted ({why}). "
         "Disagreement between data and model would be read from an unfinished fit, so no band "

@@ -147,7 +147,7 @@ def base_config(
     except (ValueError, TypeError) as error:
         raise MonitorError(f"{where}{error}") from None
     if budget is not None and (
-        isinstance(budget, bool) or not isinstance(budget, int) or budget < 2
+        isinstance(budget, bool) or not isinstance(budget, numbers.Integral) or budget < 2
     ):  # checked here: the design size is cut to the budget first and would be blamed
         raise MonitorError(
             f"--budget: {budget!r} is not allowed; expected an integer >= 2 "
@@ -159,8 +159,8 @@ def base_config(
                 config,
                 budget=dataclasses.replace(
                     config.budget,
-                    max_evaluations=budget,
-                    initial_design=min(config.budget.initial_design, budget),
+                    max_evaluations=int(budget),
+                    initial_design=min(config.budget.initial_design, int(budget)),
                 ),
             )
     except (ValueError, TypeError) as error:

@@ -306,11 +306,15 @@ class LinearisedRig(CurvedLineMethods):
                 f"settings: {settings!r} ({type(settings).__name__}) is not allowed; expected "
                 "a SpectrumSettings or None for the rig's"
             )
+        given = settings is not None
         settings = self.spec.spectrum if settings is None else settings
         try:  # an expected spectrum has no record length: one segment passes that part
             settings.check_sample_rate(self.spec.simulation.sample_rate_hz, settings.segment_s)
         except ValueError as error:
-            raise ValueError(f"settings: {error} (the rig's simulation.sample_rate_hz)") from error
+            where = "settings" if given else f"rig {self.spec.name!r}: [spectrum]"
+            raise ValueError(
+                f"{where}: {error} (against the rig's [simulation] sample_rate_hz)"
+            ) from error
         resolution = 1.0 / settings.segment_s
         step = resolution / 8.0
         fine = np.arange(1, int(np.ceil((settings.f_max_hz + 6 * resolution) / step)) + 1) * step

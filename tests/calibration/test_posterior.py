@@ -11,6 +11,7 @@ from scipy import stats
 
 from susp_bo.calibration.posterior import (
     PosteriorSummary,
+    kde_bandwidth,
     marginal_density,
     marginal_map,
     summarize,
@@ -120,6 +121,21 @@ def test_summary_of_a_pinned_parameter(log_density: object, rng: np.random.Gener
     assert np.isnan(s.r_hat[0]) and np.isnan(s.ess[0])  # no mixing to speak of
     assert np.isfinite(s.r_hat[1]) and np.isfinite(s.ess[1])
     assert marginal_map(np.full(1000, 0.3), (0.0, 1.0)) == pytest.approx(0.3, abs=1e-6)
+
+
+def test_the_bandwidth_of_draws_a_few_ulps_wide_stays_at_their_scale() -> None:
+    """Draws whose spread is not resolvable in float64 get the least resolvable bandwidth,
+    not a jump to 1e-6 of their magnitude; constant draws keep that; others are untouched."""
+    x = np.full(400, 4.4e6)
+    x[::2] = np.nextafter(4.4e6, 5e6)
+    h = kde_bandwidth(x)
+    assert 0 < h < 1e-4  # was 1e-6 x 4.4e6 x 0.9 n^-0.2 = 1.2
+    grid = np.linspace(x.min() - 6 * h, x.max() + 6 * h, 2048)
+    assert np.unique(grid).size == grid.size  # distinct bins
+    assert kde_bandwidth(np.full(400, 4.4e6)) == pytest.approx(0.9 * 4.4 * 400**-0.2)
+    y = np.random.default_rng(0).normal(size=1000)
+    iqr = np.subtract(*np.percentile(y, [75, 25]))
+    assert kde_bandwidth(y) == 0.9 * min(np.std(y), iqr / 1.34) * 1000 ** (-0.2)
 
 
 def test_repeated_names_are_refused(rng: np.random.Generator) -> None:

@@ -120,6 +120,15 @@ def test_reliability_gate_follows_the_shared_contract() -> None:
     sentence = not_trusted_sentence(untrusted, "res", 40)
     assert "40 evaluations for q = 7" in sentence
     assert "--resume --budget 80" in sentence and "res/study.toml" in sentence
+    # where simulations failed, more budget is not the remedy
+    failed = {"code": "failed_region", "message": "2 of the 8 held-out check simulations failed"}
+    sentence = not_trusted_sentence(
+        calibration_reliability({"reliability": {"verdict": "not_trusted", "reasons": [failed]}}),
+        "res",
+        40,
+    )
+    assert "2 of the 8 held-out check simulations failed" in sentence
+    assert "--resume" not in sentence and "narrow the admissible interval" in sentence
 
 
 def test_bands_are_described_with_channel_band_sign_and_physics() -> None:

@@ -7,6 +7,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 import susp_bo
@@ -79,6 +80,12 @@ def test_a_rig_path_on_the_command_line_is_relative_to_the_current_folder(
     monkeypatch.chdir(fast_rig.parent)
     config = base_config(folder, tmp_path / "out", rig=fast_rig.name)
     assert Path(config.rig) == fast_rig.resolve()
+
+
+def test_a_numpy_integer_budget_is_an_integer(folder: Path, tmp_path: Path) -> None:
+    config = base_config(folder, tmp_path / "out", budget=np.int64(60))
+    assert config.budget.max_evaluations == 60
+    assert type(config.budget.max_evaluations) is int
 
 
 @pytest.mark.parametrize("value", ["-0.5", "nan", "0", "1", "2", "abc"])
