@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -156,6 +156,19 @@ class StudyConfig:
                 f"allowed: {list(calibration_names)}"
             )
         return self.parameters
+
+    def with_absolute_paths(self) -> StudyConfig:
+        """This config with ``data``, ``out`` and a rig file's path made absolute (against
+        the current folder), as a written ``study.toml`` needs them: its reader resolves
+        relative paths against the file's own folder (:func:`load_study_config`)."""
+        rig = Path(self.rig)
+        is_file = rig.suffix == ".toml" and rig.is_file()
+        return replace(
+            self,
+            rig=str(rig.resolve()) if is_file else self.rig,
+            data=self.data.resolve(),
+            out=self.out.resolve(),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """TOML-ready mapping (paths as strings, None values left out)."""

@@ -114,6 +114,24 @@ def test_written_config_reads_back_equal_from_another_folder(
     assert again.output_error.sigma == {"carbody_vertical": 0.3, "bogie_lateral": 2.0}
 
 
+def test_a_config_made_in_python_with_relative_paths_is_written_absolute(
+    study_folder: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A study.toml written with paths relative to the current folder was read back
+    against its own folder (run_study writes ``with_absolute_paths()``)."""
+    monkeypatch.chdir(study_folder)
+    config = StudyConfig(rig="rigs/my_trailer.toml", data="measured", out="results")
+    written = tmp_path / "elsewhere" / "study.toml"
+    written.parent.mkdir()
+    written.write_text(config.with_absolute_paths().to_toml(), encoding="utf-8")
+    again = load_study_config(written)
+    assert again.data == study_folder / "measured"
+    assert again.out == study_folder / "results"
+    assert Path(again.rig) == study_folder / "rigs" / "my_trailer.toml"
+    shipped = StudyConfig(rig="hst_trailer", data="measured", out="results")
+    assert shipped.with_absolute_paths().rig == "hst_trailer"  # a name stays a name
+
+
 _PARAMETERS_LINE = 'parameters = ["secondary_vertical_damping", "primary_vertical_stiffness"]'
 _RIG_LINE = 'rig = "rigs/my_trailer.toml"'
 BAD_EDITS = [

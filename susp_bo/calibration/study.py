@@ -288,7 +288,7 @@ def run_study(
                 f"out: {error}; it is left as it was: move it away to start this study afresh "
                 "(its evaluations cannot be read back), or choose another output folder"
             ) from None
-        (out / CONFIG_NAME).write_text(config.to_toml())
+        (out / CONFIG_NAME).write_text(config.with_absolute_paths().to_toml())
         log = _logger(out)
         log.info(
             "study %s: rig %s, %d runs, parameters %s",

@@ -162,6 +162,12 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         raise StudyError(str(error)) from error
     check_budget(config, len(names))
     check_sigma_table(config, spec)
+    if config.out.resolve() == config.data.resolve():
+        raise StudyError(
+            f"out: {config.out} is the data folder; expected a results folder of its own (the "
+            "study writes its store, results, figures and log there, and a results folder is "
+            "something one deletes)"
+        )
     store_path = config.out / STORE_NAME
     if store_path.exists() and not resume:
         raise StudyError(

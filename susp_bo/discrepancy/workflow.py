@@ -25,6 +25,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -70,8 +71,23 @@ class WorkflowSettings:
             raise ValueError(
                 f"WorkflowSettings.n_draws: got {self.n_draws}; must be an integer >= 2"
             )
-        if self.max_iterations < 1:
-            raise ValueError(f"WorkflowSettings.max_iterations: got {self.max_iterations}; >= 1")
+        if (
+            isinstance(self.max_iterations, bool)
+            or not isinstance(self.max_iterations, numbers.Integral)
+            or self.max_iterations < 1
+        ):  # SciPy's least squares never stops on a NaN or fractional limit
+            raise ValueError(
+                f"WorkflowSettings.max_iterations: got {self.max_iterations!r}; must be an "
+                "integer >= 1"
+            )
+        if self.candidates is not None and (
+            isinstance(self.candidates, str) or len(self.candidates) == 0
+        ):
+            raise ValueError(
+                f"WorkflowSettings.candidates: got {self.candidates!r}; expected a non-empty "
+                "sequence of effect names, or None for the whole library (with no effect "
+                "tried, no disagreement could be called unexplained)"
+            )
 
 
 def check(

@@ -84,6 +84,21 @@ def test_out_that_is_a_file_is_refused(
     assert file.read_text() == "not a folder"
 
 
+def test_out_that_is_the_data_folder_is_refused(
+    rigs: dict[str, Path],
+    runs_by_rig: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The store, results, figures and log were written among the measured runs."""
+    runs = load_runs(runs_by_rig["short_a"])
+    data = _data_folder(tmp_path, {"run_000.h5": runs[0], "run_001.h5": runs[1]})
+    before = sorted(p.name for p in data.iterdir())
+    argv = ["calibrate", str(rigs["short_a"]), str(data), "--out", str(data)]
+    _refused(capsys, argv, "out:", "is the data folder")
+    assert sorted(p.name for p in data.iterdir()) == before
+
+
 def test_study_out_that_is_a_file_is_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -161,3 +161,22 @@ def test_a_recalibration_that_ends_worse_is_not_accepted(base_spec, linear_simul
     refused = dataclasses.replace(report, accepted=False, accept_reasons=({"code": "x",
                                   "message": "worse"},))  # fmt: skip
     assert refused.answer_model == "base" and "NOT better" in refused.sentence()
+
+
+@pytest.mark.parametrize(
+    ("changes", "match"),
+    [
+        ({"max_iterations": float("nan")}, "max_iterations: got nan; must be an integer >= 1"),
+        ({"max_iterations": 2.5}, "max_iterations: got 2.5"),
+        ({"max_iterations": True}, "max_iterations: got True"),
+        ({"candidates": ()}, r"candidates: got \(\); expected a non-empty"),
+        ({"candidates": "carbody_bending"}, "candidates: got 'carbody_bending'"),
+    ],
+)
+def test_workflow_settings_refuse_what_would_hang_or_claim_too_much(
+    changes: dict, match: str
+) -> None:
+    """A NaN or fractional iteration limit never stopped SciPy's least squares; no
+    candidate at all made any disagreement "unexplained"."""
+    with pytest.raises(ValueError, match=match):
+        WorkflowSettings(**changes)
