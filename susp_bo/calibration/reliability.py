@@ -33,8 +33,8 @@ Rules (each a pure function of numbers, testable alone):
   *only* reason, the loop has finished by its own criteria and more budget alone
   is not the remedy; ``susp-bo diagnose`` accepts such a calibration (a finished
   fit that misses the data is exactly what it examines).
-- ``failed_region`` (:func:`failed_region`): the posterior reaches where the simulator
-  failed — a held-out check simulation at the posterior's edges failed, or more than
+- ``failed_region`` (:func:`.failed_region.failed_region`): the posterior reaches where
+  the simulator failed — a held-out check simulation at the posterior's edges failed, or more than
   ``share`` of the reported draws lie nearer (in the unit cube of C_w) to a failed
   evaluation than to a successful one. The surrogate fills a failed point with the
   lowest finite log L, so that part of the posterior rests on a stand-in value, not on
@@ -83,6 +83,7 @@ from typing import Any, Literal
 import numpy as np
 
 from susp_bo.calibration.budget import BudgetRequirement, budget_too_small
+from susp_bo.calibration.failed_region import failed_region
 from susp_bo.calibration.reliability_sentence import sentence
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
@@ -302,81 +303,6 @@ def checked_expected_at_truth(value: object) -> tuple[float, float] | None:
             "finite sd >= 0 (nats)"
         )
     return mean, sd
-
-
-def failed_region(
-    draws_unit: np.ndarray,
-    evaluated_unit: np.ndarray,
-    evaluated_ok: np.ndarray,
-    check: SurrogateCheck | None,
-    *,
-    share: float = 0.05,
-    count: int = 2048,
-) -> tuple[Reason | None, dict[str, Any]]:
-    """``failed_region`` when the posterior reaches where the simulator failed.
-
-    Args:
-        draws_unit: (m x q) posterior draws in the unit cube of C_w.
-        evaluated_unit: (n x q) every evaluated point, same cube.
-        evaluated_ok: (n,) True where log L came back finite.
-        check: the held-out check (its failed points count), None when none ran.
-        share: the rule fires when more than this share of the draws lies nearer to a
-            failed evaluation than to a successful one.
-        count: draws looked at (evenly spaced: deterministic).
-
-    The nearest-point share errs on the side of "not trusted": with few evaluations a
-    failed point's neighbourhood reaches into a posterior that need not reach the failed
-    region itself (a 2-D banana at 60 evaluations, failures beyond its 99.5 % quantile:
-    6.9 % of the draws nearest a failed point; at 200 evaluations 0 %).
-
-    Returns:
-        (the reason or None, evidence: ``failed_evaluations``, ``failed_check_points``,
-        ``draws_near_failed`` — the share, None with no draw or no failure).
-    """
-    ok = np.asarray(evaluated_ok, dtype=bool)
-    failed_checks = 0 if check is None else int(np.sum(~np.isfinite(check.observed)))
-    near = None
-    u = np.asarray(draws_unit, dtype=np.float64)
-    if (~ok).any() and ok.any() and u.shape[0]:
-        idx = np.unique(np.linspace(0, u.shape[0] - 1, min(count, u.shape[0])).round().astype(int))
-        x = np.asarray(evaluated_unit, dtype=np.float64)
-        nearest = np.concatenate(  # elementwise (no BLAS: the same bits on any thread count)
-            [
-                np.argmin(((u[chunk, None, :] - x[None, :, :]) ** 2).sum(-1), axis=1)
-                for chunk in np.array_split(idx, max(1, idx.size // 256))
-            ]
-        )
-        near = float(np.mean(~ok[nearest]))
-    elif (~ok).any() and u.shape[0]:
-        near = 1.0
-    evidence = {
-        "failed_evaluations": int(np.sum(~ok)),
-        "failed_check_points": failed_checks,
-        "draws_near_failed": near,
-    }
-    findings = []
-    if failed_checks:
-        n_check = len(check.observed) if check is not None else 0
-        findings.append(
-            f"{failed_checks} of the {n_check} held-out check simulations at the posterior's "
-            "edges failed"
-        )
-    if near is not None and near > share:
-        findings.append(
-            f"{100 * near:.1f} % of the posterior draws lie nearer to a failed evaluation than "
-            f"to a successful one ({int(np.sum(~ok))} of {ok.size} evaluations failed)"
-        )
-    if not findings:
-        return None, evidence
-    reason: Reason = {
-        "code": "failed_region",
-        "message": (
-            " and ".join(findings) + ": there the posterior rests on the stand-in value the "
-            "surrogate gives a failed simulation (the lowest log L seen), not on the model"
-        ),
-        **evidence,
-    }
-    return reason, evidence
 
 
 def at_bound(
