@@ -36,8 +36,7 @@ def run_import(args: argparse.Namespace) -> int:
             raise UsageError(f"--rig: {error}") from None
     runs = read_runs(args.kind, args.inputs, speed_m_s=args.speed)
     checked = []
-    for name, run in runs:
-        run = run.to_si()
+    for name, run in runs:  # read_runs gives them in m/s^2
         if spec is not None:
             from susp_bo.rig.simulator import axle_span_m
 

@@ -107,35 +107,34 @@ def read_runs(
             accelerations' ``speed_m_s`` column is used); ignored for ``mat``.
 
     Returns:
-        ``(run name, run)`` pairs, sorted by name.
+        ``(run name, run)`` pairs, sorted by name; every run in m/s² (:meth:`MeasuredRun.to_si`).
 
     Raises:
         MeasuredDataError: as :func:`input_files`, :func:`csv_groups` and the importers;
-            and a run with an acceleration unit that cannot be converted to m/s² (an
-            import converts every run), naming its file.
+            and a run with an acceleration unit that cannot be converted to m/s², naming
+            its file.
     """
     if kind not in IMPORT_KINDS:
         raise MeasuredDataError(f"kind: {kind!r} is not allowed; expected one of {IMPORT_KINDS}")
     files = input_files(kind, inputs)
     if kind == "mat":
-        return [(path.stem, _convertible(path, read_mat_run(path))) for path in files]
+        return [(path.stem, _in_si(path, read_mat_run(path))) for path in files]
     runs = []
     for name, group in csv_groups(files).items():
         speed = group.get("speed", speed_m_s)
         path = group["accelerations"]
-        runs.append((name, _convertible(path, read_csv_run(path, group["geometry"], speed))))
+        runs.append((name, _in_si(path, read_csv_run(path, group["geometry"], speed))))
     return runs
 
 
-def _convertible(path: Path, run: MeasuredRun) -> MeasuredRun:
-    """``run`` (unchanged) when :meth:`MeasuredRun.to_si` can convert it.
+def _in_si(path: Path, run: MeasuredRun) -> MeasuredRun:
+    """``run`` with every channel in m/s² (:meth:`MeasuredRun.to_si`).
 
     Raises:
         MeasuredDataError: ``"<path>: unit mismatch: …"``, naming the channels, their units
             and the known ones.
     """
     try:
-        run.to_si()
+        return run.to_si()
     except MeasuredDataError as error:
         raise MeasuredDataError(f"{path}: {error}") from None
-    return run
