@@ -44,9 +44,9 @@ def test_simulate_follows_the_line(tmp_path: Path, capsys: pytest.CaptureFixture
     line = _line(tmp_path)
     arguments = ["simulate", "hst_trailer", "--out", str(out), "--duration", "8", "--speed", "70"]
     assert main([*arguments, "--line", str(line)]) == 0, capsys.readouterr().err
-    signals = np.load(out / "signals.npz")
-    channels = list(signals["channels"])
-    lateral = signals["accelerations_m_s2"][channels.index("carbody_mid_lateral")]
+    with np.load(out / "signals.npz") as signals:  # closed here: an open npz warns when collected
+        channels = list(signals["channels"])
+        lateral = signals["accelerations_m_s2"][channels.index("carbody_mid_lateral")]
     centripetal = 70.0**2 / 7000.0  # no cant: V²/R, plus the carbody's roll-out (≈ 11 %)
     assert np.mean(lateral[-200:]) == pytest.approx(1.11 * centripetal, rel=0.05)
     assert json.loads((out / "spectra.json").read_text())["line"] == str(line)

@@ -34,9 +34,10 @@ def test_simulate_writes_signals_spectra_and_a_figure(
         ]
     )
     assert code == 0, capsys.readouterr().err
-    signals = np.load(out / "signals.npz")
+    with np.load(out / "signals.npz") as signals:  # closed here: an open npz warns when collected
+        accelerations = signals["accelerations_m_s2"]
     spectra = json.loads((out / "spectra.json").read_text())
-    assert signals["accelerations_m_s2"].shape[0] == len(spectra["channels"])
+    assert accelerations.shape[0] == len(spectra["channels"])
     assert spectra["parameters"]["secondary_vertical_damping"] == 30000.0
     assert spectra["speed_m_s"] == 70.0
     values = np.array(spectra["log_amplitude"])
