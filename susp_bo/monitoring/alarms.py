@@ -44,7 +44,15 @@ def p_outside(samples: np.ndarray, acceptable: tuple[float, float]) -> float:
     draws = np.asarray(samples, dtype=np.float64).reshape(-1)
     if draws.size == 0:
         raise ValueError("samples: no draws")
+    bad = int(np.count_nonzero(~np.isfinite(draws)))
+    if bad:  # a NaN compares False both ways and would count as inside the domain
+        raise ValueError(
+            f"samples: {bad} of {draws.size} draws are not finite; expected finite posterior "
+            "draws (a non-finite draw is neither inside nor outside the acceptable domain)"
+        )
     lo, hi = acceptable
+    if not lo < hi:  # also refuses NaN bounds; an infinite bound is a one-sided domain
+        raise ValueError(f"acceptable: got ({lo}, {hi}); expected bounds with lower < upper")
     return float(np.mean((draws < lo) | (draws > hi)))
 
 

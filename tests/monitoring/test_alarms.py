@@ -35,6 +35,27 @@ def test_p_outside_of_random_gaussian_draws_is_within_five_monte_carlo_errors() 
     assert abs(p_outside(draws, BAND) - EXACT) < 5 * error
 
 
+@pytest.mark.parametrize(
+    ("draws", "acceptable", "message"),
+    [
+        ([30.0e3, np.nan, 60.0e3], BAND, "1 of 3 draws are not finite"),
+        ([30.0e3, np.inf], BAND, "1 of 2 draws are not finite"),
+        ([30.0e3], (56.0e3, 28.0e3), "expected bounds with lower < upper"),
+        ([30.0e3], (np.nan, 56.0e3), "expected bounds with lower < upper"),
+    ],
+)
+def test_p_outside_refuses_what_it_cannot_count(
+    draws: list[float], acceptable: tuple[float, float], message: str
+) -> None:
+    # a NaN draw compares False on both sides: it was counted inside the domain
+    with pytest.raises(ValueError, match=message):
+        p_outside(np.array(draws), acceptable)
+
+
+def test_p_outside_with_a_one_sided_domain() -> None:
+    assert p_outside(np.array([1.0, 2.0, 3.0, 4.0]), (-np.inf, 2.5)) == 0.5
+
+
 def test_summary_gives_median_equal_tailed_interval_and_the_side_of_the_mass() -> None:
     n = 40_000
     draws = norm.ppf((np.arange(n) + 0.5) / n, 20.0e3, 1.0e3)
