@@ -80,7 +80,7 @@ class DiagnosisReport:
                 "nothing to name."
             )
         if self.verdict == "unexplained_disagreement":
-            text = unexplained_sentence(self.before.bands)
+            text = unexplained_sentence(self.before.bands, [r.effect for r in self.ranking])
             if self.naming_check is not None:
                 why = "; ".join(r["message"] for r in self.naming_check.reasons)
                 text += f" Best library candidate {self.naming_check.effect} not named: {why}."

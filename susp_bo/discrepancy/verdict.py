@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo.discrepancy.detection import Detection, FlaggedBand
+from susp_bo.discrepancy.effects import EFFECTS
 
 VERDICTS = ("consistent", "named", "unexplained_disagreement", "calibration_not_trusted")
 """The verdict vocabulary, in the order a maintainer reads it."""
@@ -292,13 +293,32 @@ def describe_band(band: FlaggedBand) -> str:
     )
 
 
-def unexplained_sentence(bands: Sequence[FlaggedBand], limit: int = 3) -> str:
-    """The sentence of an ``unexplained_disagreement`` answer (strongest bands first)."""
+def unexplained_sentence(
+    bands: Sequence[FlaggedBand], tried: Sequence[str] | None = None, limit: int = 3
+) -> str:
+    """The sentence of an ``unexplained_disagreement`` answer (strongest bands first).
+
+    Args:
+        bands: the flagged bands, strongest first.
+        tried: the library effects that were tried (None: the whole library). When some
+            library effects were not tried, the sentence says which instead of claiming
+            that no library effect explains the bands.
+        limit: bands described in full.
+    """
     lines = "; ".join(describe_band(b) for b in bands[:limit])
     more = f" (and {len(bands) - limit} more bands)" if len(bands) > limit else ""
+    untried = [] if tried is None else [name for name in EFFECTS if name not in tried]
+    if not untried:
+        return (
+            f"Data and model disagree in {len(bands)} band(s) that no library effect explains: "
+            f"{lines}{more}. Look for physics outside the library before replacing parts."
+        )
+    assert tried is not None
     return (
-        f"Data and model disagree in {len(bands)} band(s) that no library effect explains: "
-        f"{lines}{more}. Look for physics outside the library before replacing parts."
+        f"Data and model disagree in {len(bands)} band(s) that none of the {len(tried)} "
+        f"effect(s) tried ({', '.join(tried)}) explains: {lines}{more}. The library's "
+        f"other effects ({', '.join(untried)}) were not tried: try them, then look for "
+        "physics outside the library, before replacing parts."
     )
 
 

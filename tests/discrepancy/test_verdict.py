@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from susp_bo.discrepancy.detection import FlaggedBand, predictive_check
+from susp_bo.discrepancy.effects import EFFECTS
 from susp_bo.discrepancy.verdict import (
     NO_RELIABILITY,
     VERDICTS,
@@ -141,6 +142,18 @@ def test_bands_are_described_with_channel_band_sign_and_physics() -> None:
     assert "out-of-roundness" in describe_band(low)
     sentence = unexplained_sentence([band, low, band, band])
     assert "4 band(s)" in sentence and "(and 1 more bands)" in sentence
+    assert "no library effect explains" in sentence  # the whole library was tried
+    assert unexplained_sentence([band], list(EFFECTS)) == unexplained_sentence([band])
+
+
+def test_the_unexplained_sentence_names_the_effects_not_tried() -> None:
+    # one candidate tried is not "no library effect explains": the others are named
+    band = FlaggedBand("carbody_mid_lateral", 1.2, 2.0, 1.5, "model_too_little", 5.0, 4.2, 3)
+    sentence = unexplained_sentence([band], ["carbody_bending"])
+    assert "no library effect" not in sentence
+    assert "none of the 1 effect(s) tried (carbody_bending) explains" in sentence
+    others = [name for name in EFFECTS if name != "carbody_bending"]
+    assert f"other effects ({', '.join(others)}) were not tried" in sentence
 
 
 @pytest.mark.parametrize(
