@@ -290,6 +290,12 @@ class Rig:
         sim = spec.simulation
         speed = sim.speed_m_s if speed is None else speed
         if isinstance(speed, SpeedProfile):
+            if duration_s is not None:  # the profile sets the run's length: two would disagree
+                raise ValueError(
+                    f"duration_s: got {duration_s} s with a SpeedProfile; a profile's "
+                    f"duration ({speed.duration_s} s, warm-up included) is the run's length: "
+                    "leave duration_s out, or make the profile that long"
+                )
             total = speed.duration_s
             duration = total - sim.warm_up_s
         else:

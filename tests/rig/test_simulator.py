@@ -155,6 +155,9 @@ def test_variable_speed_runs_and_changes_the_response(short_spec: RigSpec, rig: 
     assert response.accelerations_m_s2.shape[1] == round(12.0 * response.sample_rate_hz)
     constant = rig.simulate(track, speed=60.0, duration_s=12.0)
     assert not np.allclose(response.accelerations_m_s2, constant.accelerations_m_s2)
+    # a profile sets the run's length: a duration beside it was silently ignored
+    with pytest.raises(ValueError, match=r"duration_s: got 5\.0 s with a SpeedProfile"):
+        rig.simulate(track, speed=profile, duration_s=5.0)
 
 
 def test_divergence_is_reported_not_returned(short_spec: RigSpec) -> None:
