@@ -182,4 +182,15 @@ def load_line(path: str | Path) -> TrackDesign:
     unknown = sorted(set(data) - {"line", "segments"})
     if unknown:
         raise DesignError(f"{file}: unknown table(s) {unknown}; allowed [line], [[segments]]")
+    header = data.get("line", {})
+    if not isinstance(header, Mapping):
+        raise DesignError(f"{file}: line = {header!r}; expected a [line] table (name = ...)")
+    extra = sorted(set(header) - {"name"})
+    if extra:  # e.g. a segment key written under [line]: it would be silently ignored
+        raise DesignError(
+            f"{file}: [line]: unknown key(s) {extra}; allowed: name (the segments' keys go "
+            "under [[segments]])"
+        )
+    if "name" in header and not isinstance(header["name"], str):
+        raise DesignError(f"{file}: [line] name = {header['name']!r}; expected a string")
     return design_from_segments(data.get("segments", []), source=str(file))

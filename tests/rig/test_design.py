@@ -172,3 +172,12 @@ def test_line_files_round_trip_and_name_the_file(tmp_path: Path) -> None:
         load_line(bad)
     with pytest.raises(DesignError, match="does not exist"):
         load_line(tmp_path / "missing.toml")
+    segment = '[[segments]]\ntype = "tangent"\nlength_m = 100.0\n'
+    for header, message in [
+        ("[line]\nradius_m = 2000.0\n", r"\[line\]: unknown key\(s\) \['radius_m'\]"),
+        ("line = 3\n", "expected a \\[line\\] table"),
+        ("[line]\nname = 3\n", "expected a string"),
+    ]:  # a segment key under [line] was silently ignored
+        bad.write_text(header + "\n" + segment)
+        with pytest.raises(DesignError, match=message):
+            load_line(bad)
