@@ -86,7 +86,8 @@ def _design(path: Path, **fields: Any) -> TrackDesign:
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     """Header names and a float64 (rows x columns) table; empty cells are NaN."""
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
+        # utf-8-sig: a spreadsheet's byte-order mark is not part of the first column's name
+        with open(path, newline="", encoding="utf-8-sig") as handle:
             rows = [r for r in csv.reader(handle) if r and not r[0].lstrip().startswith("#")]
     except (OSError, UnicodeError, csv.Error) as error:
         raise MeasuredDataError(f"{path}: cannot read CSV ({error})") from None

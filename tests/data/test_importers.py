@@ -43,6 +43,19 @@ def test_csv_round_trip_is_exact(small_run: MeasuredRun, tmp_path: Path) -> None
     assert run.metadata == {"source": "csv:acc.csv", "line": "LGV Est", "geometry_start_m": 0.0}
 
 
+def test_csv_written_by_a_spreadsheet_with_a_byte_order_mark(
+    small_run: MeasuredRun, tmp_path: Path
+) -> None:
+    # Excel's "CSV UTF-8" starts with a BOM; it was read into the first column's name
+    files = [tmp_path / name for name in ("acc.csv", "geo.csv", "speed.csv")]
+    write_csv_run(small_run, *files)
+    for file in files:
+        file.write_bytes(b"\xef\xbb\xbf" + file.read_bytes())
+    run = read_csv_run(*files)
+    np.testing.assert_array_equal(run.accelerations_m_s2, small_run.accelerations_m_s2)
+    np.testing.assert_array_equal(run.geometry.vertical_m, small_run.geometry.vertical_m)
+
+
 def test_csv_layout_by_hand(tmp_path: Path) -> None:
     """Units in brackets, chainage offset, speed column, clock from the first sample."""
     acc = _write(
