@@ -105,6 +105,12 @@ def test_csv_errors_name_file_line_and_column(acc_text: str, pattern: str, tmp_p
 
 
 def test_csv_geometry_and_speed_file_errors(tmp_path: Path) -> None:
+    acc = _write(tmp_path / "acc.csv", "time_s,a\n0,1\n0.01,2\n0.02,3\n")
+    rows = ["s_m,vertical_m,alignment_m,cross_level_rad,gauge_m"]
+    rows += [f"{0.5 * i},0,{4.0 * (i % 5)},0,0" for i in range(41)]  # alignment in mm
+    geo = _write(tmp_path / "geo_mm.csv", "\n".join(rows) + "\n")
+    with pytest.raises(MeasuredDataError, match=r"geo_mm\.csv: alignment_m deviates up to 8 m"):
+        read_csv_run(acc, geo, speed=80.0)
     acc = _write(tmp_path / "acc.csv", "time_s,a\n5,1\n5.01,2\n5.02,3\n")
     geo = _write(tmp_path / "geo.csv", "s_m,vertical_m,alignment_m,gauge_m\n0,0,0,0\n1,0,0,0\n")
     with pytest.raises(MeasuredDataError, match=r"geo\.csv: columns must be .*missing \['cross"):
@@ -168,6 +174,14 @@ def test_mat_written_by_hand(tmp_path: Path) -> None:
         ({"sample_rate_hz": -5.0}, r"sample_rate_hz: got -5.0 Hz; must be > 0"),
         ({"vertical_m": np.zeros(10)}, r"vertical_m has 400 samples|alignment_m: has 400"),
         ({"gauge_m": np.full(400, np.nan)}, r"gauge_m: 400 non-finite"),
+        (  # millimetres under a metre variable: 5 m of irregularity was taken
+            {"vertical_m": 5.0 * np.sin(np.arange(400) / 7.0)},
+            r"vertical_m deviates up to 5\.0\d* m from its median; .*was it written in mm\?",
+        ),
+        (
+            {"cross_level_rad": np.linspace(0.0, 3.0, 400)},
+            r"cross_level_rad deviates up to 1.5 rad .*was it written in mrad\?",
+        ),
         ({"speed_m_s": np.array([20.0, 21.0])}, r"missing variable 'speed_time_s'"),
         ({"units": np.array(["m/s^2"], dtype=object)}, r"units: need one string per channel"),
         ({"metadata_json": "{oops"}, r"'metadata_json' is not JSON"),
