@@ -120,6 +120,17 @@ class RigSpec:
                 f"rig {self.name!r}: missing parameters for topology {self.topology!r}: "
                 f"{', '.join(missing)}"
             )
+        pivot, wheelbase = (
+            params.get("bogie_half_pivot_spacing"),
+            params.get("bogie_half_wheelbase"),
+        )
+        if pivot is not None and wheelbase is not None and not pivot > wheelbase:
+            raise ValueError(
+                f"rig {self.name!r}: parameter bogie_half_pivot_spacing: got {pivot} m, not more "
+                f"than bogie_half_wheelbase {wheelbase} m; the bogie centres must lie further "
+                "from the car centre than their wheelsets from the bogie centre (else the two "
+                "bogies' wheelsets overlap)"
+            )
         for key in [k for k in params if is_component_name(k)]:
             split_component_name(key, params, self.topology)
         for entry in self.calibration:  # a per-component entry defaults to the shared value

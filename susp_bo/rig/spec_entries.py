@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 SENSOR_DIRECTIONS = ("vertical", "lateral")
 TRACK_QUALITIES = ("low", "high")
 # Parameter-name fragments and the sign they require (first match wins).
-_POSITIVE_WORDS = ("mass", "inertia", "radius", "coefficient", "spacing", "wheelbase")
+_POSITIVE_WORDS = ("mass", "inertia", "radius", "coefficient", "spacing", "wheelbase", "height")
 _NON_NEGATIVE_WORDS = ("stiffness", "damping", "knee", "ratio", "gap", "smoothing", "conicity")
 
 
@@ -30,8 +30,8 @@ def check_parameter_value(name: str, value: float) -> None:
     """Raise ValueError unless ``value`` is admissible for a parameter called ``name``.
 
     Rules by meaning: finite always; names containing mass, inertia, radius,
-    coefficient, spacing or wheelbase must be > 0; stiffness, damping, knee,
-    ratio, gap, smoothing or conicity must be >= 0. A per-component name
+    coefficient, spacing, wheelbase or height (above the rail top) must be > 0;
+    stiffness, damping, knee, ratio, gap, smoothing or conicity must be >= 0. A per-component name
     ``<parameter>@<component>`` follows the rule of its ``<parameter>``.
     """
     if not math.isfinite(value):

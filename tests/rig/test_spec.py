@@ -61,6 +61,8 @@ def test_channels_cover_carbody_and_bogies_vertical_and_lateral(reference_spec: 
         ({"yaw_damper_damping": math.inf}, "must be finite"),
         ({"primary_vertical_stiffness": 5e6}, "outside the admissible interval"),
         ({"anti_roll_bar_stiffness": 0.5e6}, "outside the admissible interval"),
+        ({"carbody_cg_height": -5.0}, "carbody_cg_height: got -5.0; must be > 0"),
+        ({"bogie_half_pivot_spacing": 0.5}, "got 0.5 m, not more than bogie_half_wheelbase"),
     ],
 )
 def test_bad_parameter_values_are_rejected(
