@@ -139,6 +139,13 @@ class PosteriorSummary:
                 raise ValueError(
                     f"{name}: shape {np.shape(getattr(self, name))}, expected ({q}, 2)"
                 )
+            bounds = np.asarray(getattr(self, name), dtype=np.float64)
+            inverted = [n for n, (lo, hi) in zip(self.names, bounds, strict=True) if not lo <= hi]
+            if inverted:  # also NaN: an interval must have ordered, comparable ends
+                raise ValueError(
+                    f"{name}: not an interval (lower > upper, or NaN) for {', '.join(inverted)}; "
+                    "expected rows (lower, upper) with lower <= upper"
+                )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of plain lists (physical units)."""

@@ -90,6 +90,17 @@ def test_summary_validation() -> None:
         )
 
 
+@pytest.mark.parametrize("field", ["interval95", "equal_tailed95"])
+@pytest.mark.parametrize("row", [[2.0, 1.0], [np.nan, 1.0]])
+def test_summary_refuses_an_inverted_interval(field: str, row: list[float]) -> None:
+    arrays = {"interval95": np.array([[0.0, 1.0], [0.0, 1.0]])}
+    arrays["equal_tailed95"] = arrays["interval95"].copy()
+    arrays[field] = np.array([[0.0, 1.0], row])
+    with pytest.raises(ValueError, match=rf"{field}: not an interval .* for b;"):
+        PosteriorSummary(("a", "b"), *[np.zeros(2)] * 2, arrays["interval95"],
+                         arrays["equal_tailed95"], *[np.zeros(2)] * 4)  # fmt: skip
+
+
 @pytest.mark.parametrize("n_draws", [0, 1, 3])
 def test_summary_needs_four_draws_per_chain(n_draws: int, rng: np.random.Generator) -> None:
     with pytest.raises(ValueError, match=rf"draws_unit: {n_draws} draws per chain .* >= 4"):
