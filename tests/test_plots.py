@@ -138,6 +138,27 @@ def test_fig2_and_pairs_follow_the_draws(tmp_path: Path, rng: np.random.Generato
     assert matplotlib.image.imread(p).shape[0] > 200
 
 
+@pytest.mark.parametrize("plot", [plots.plot_marginals, plots.plot_pairs])
+def test_transposed_or_non_finite_draws_are_refused(
+    plot, tmp_path: Path, rng: np.random.Generator
+) -> None:
+    # (q x n) draws were reshaped to (n x q) without a word: a scrambled posterior drawn
+    summary, samples, bounds = _summary(2, rng)
+    with pytest.raises(ValueError, match=r"draws: shape \(2, 4000\); expected \(draws x 2\)"):
+        plot(samples.T, summary, bounds, tmp_path / "x.png")
+    samples[3, 1] = np.nan
+    with pytest.raises(ValueError, match="draws: 1 non-finite values"):
+        plot(samples, summary, bounds, tmp_path / "x.png")
+
+
+def test_a_path_without_suffix_returns_the_file_written(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
+    summary, _samples, bounds = _summary(2, rng)
+    written = plots.plot_parameters(summary, bounds, tmp_path / "fig1")
+    assert written == tmp_path / "fig1.png" and written.is_file()
+
+
 def test_fig1_writes_physical_values_with_prefixes_and_a_full_legend(
     rng: np.random.Generator,
 ) -> None:

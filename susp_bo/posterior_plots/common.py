@@ -300,7 +300,33 @@ def legend_handles(used: set[str], pairs: bool = False) -> list[Any]:
 
 
 def save(fig: Figure, path: str | Path) -> Path:
+    """Save and close ``fig``; returns the file written (``.png`` added when no suffix)."""
     out = Path(path)
+    if not out.suffix:  # matplotlib would add .png itself, and the returned name not exist
+        out = out.with_name(out.name + ".png")
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def draws_matrix(draws: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """Posterior draws as a (n x q) float64 matrix, refusing any other layout.
+
+    Args:
+        draws: (n x q) or (chains x n x q) draws in physical units.
+        names: the q parameter names (named in the message).
+
+    Raises:
+        ValueError: the last axis is not q (e.g. transposed (q x n) draws, which a plain
+            reshape would scramble), no draws, or non-finite draws.
+    """
+    array = np.asarray(draws, dtype=np.float64)
+    q = len(names)
+    if array.ndim not in (2, 3) or array.shape[-1] != q or array.size == 0:
+        raise ValueError(
+            f"draws: shape {array.shape}; expected (draws x {q}) or (chains x draws x {q}), "
+            f"the last axis over the parameters {list(names)}"
+        )
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"draws: {int(np.sum(~np.isfinite(array)))} non-finite values")
+    return array.reshape(-1, q)

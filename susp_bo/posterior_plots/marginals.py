@@ -27,6 +27,7 @@ from susp_bo.posterior_plots.common import (
     View,
     band_array,
     check_inputs,
+    draws_matrix,
     edge_note,
     legend_handles,
     plain_axis,
@@ -126,7 +127,7 @@ def marginals_figure(
     bounds = np.asarray(bounds, dtype=np.float64)
     check_inputs(summary, bounds, reference, units, acceptable)
     q = len(summary.names)
-    draws = np.asarray(draws, dtype=np.float64).reshape(-1, q)
+    draws = draws_matrix(draws, summary.names)
     comps = list(range(q)) if components is None else list(components)
     unit = unit_list(units, q)
     band = band_array(acceptable, q)

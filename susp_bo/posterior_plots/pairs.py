@@ -26,6 +26,7 @@ from susp_bo.posterior_plots.common import (
     axis_label,
     band_array,
     check_inputs,
+    draws_matrix,
     legend_handles,
     plain_axis,
     verdict_suptitle,
@@ -162,7 +163,7 @@ def pairs_figure(
     bounds = np.asarray(bounds, dtype=np.float64)
     check_inputs(summary, bounds, reference, units, acceptable)
     q = len(summary.names)
-    d = np.asarray(draws, dtype=np.float64).reshape(-1, q)
+    d = draws_matrix(draws, summary.names)
     band = band_array(acceptable, q)
     views = views_of(d, summary, bounds, units, reference)
     size = max(7.0, 2.1 * q + 1.2)
