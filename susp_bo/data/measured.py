@@ -72,7 +72,7 @@ import hashlib
 import json
 import math
 import os
-import tempfile
+import uuid
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -437,8 +437,9 @@ def save_run(run: MeasuredRun, path: str | os.PathLike[str]) -> Path:
             f"expected one of {sorted(RUN_SUFFIXES)}"
         )
     target.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-    os.close(handle)
+    # a unique name made like a plain file (mode 0666 less the umask; mkstemp's is 0600)
+    temporary = str(target.parent / f".{target.name}.{uuid.uuid4().hex}.tmp")
+    os.close(os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
     try:
         write_run_file(run, Path(temporary))
         os.replace(temporary, target)

@@ -149,6 +149,9 @@ def test_save_load_round_trip_is_exact(small_run: MeasuredRun, tmp_path: Path) -
     _assert_same_run(small_run, loaded)
     assert loaded.content_digest() == small_run.content_digest()
     assert [p.name for p in path.parent.iterdir()] == ["run.h5"]  # no temporary left behind
+    plain = tmp_path / "plain"
+    plain.write_bytes(b"")  # a file made the ordinary way: mode 0666 less the umask
+    assert path.stat().st_mode & 0o777 == plain.stat().st_mode & 0o777  # was 0600
 
 
 def test_file_layout_matches_the_documentation(small_run: MeasuredRun, tmp_path: Path) -> None:
