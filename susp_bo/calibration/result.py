@@ -115,18 +115,46 @@ class CalibrationResult:
             for c in self.basins
         ]
 
+    def local_search_dict(self) -> dict[str, Any] | None:
+        """The local phase, JSON-ready: mode, Laplace sd (physical units), stop; or None."""
+        local = self.local_search
+        if local is None:
+            return None
+        span = self.bounds[1] - self.bounds[0]
+        return {
+            "mode": (self.bounds[0] + local.mode * span).tolist(),
+            "laplace_sd": (local.sd * span).tolist(),
+            "log_likelihood": local.log_likelihood,
+            "n_evaluations": local.n_evaluations,
+            "stop_reason": local.stop_reason,
+            "iterations": local.iterations,
+        }
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (physical units)."""
-        out = self.summary.to_dict()
-        out.update(
-            bounds=self.bounds.tolist(),
-            n_evaluations=int(self.n_evaluations),
-            n_failed=int(np.sum(~np.isfinite(self.y))),
-            stop_reason=self.stop_reason,
-            mcmc=dict(self.mcmc),
-            surrogate_check=None if self.check is None else self.check.to_dict(self.box),
-            search_box=None if self.search_box is None else self.search_box.tolist(),
-            reliability=None if self.reliability is None else self.reliability.to_dict(),
-            basin_climbs=self.basin_climbs(),
-        )
-        return out
+        """The calibration's part of ``result.json``: the same keys, layout and meaning.
+
+        Physical units; ``bounds`` as (q x 2) pairs (lower, upper), r-hat and ESS under
+        ``mcmc``. ``result.json`` adds the study's context (units, rig, data, reference,
+        output error, number of simulations, version, …).
+        """
+        summary = self.summary.to_dict()
+        return {
+            "parameters": list(self.names),
+            "bounds": [[float(lo), float(hi)] for lo, hi in self.bounds.T],
+            "joint_map": summary["joint_map"],
+            "marginal_map": summary["marginal_map"],
+            "interval95": summary["interval95"],
+            "equal_tailed95": summary["equal_tailed95"],
+            "posterior_mean": summary["mean"],
+            "posterior_sd": summary["sd"],
+            "n_evaluations": int(self.n_evaluations),
+            "n_failed_evaluations": int(np.sum(~np.isfinite(self.y))),
+            "stop_reason": self.stop_reason,
+            "best_log_likelihood": float(np.nanmax(self.y)),
+            "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **self.mcmc},
+            "surrogate_check": None if self.check is None else self.check.to_dict(self.box),
+            "search_box": None if self.search_box is None else self.search_box.tolist(),
+            "local_search": self.local_search_dict(),
+            "basin_climbs": self.basin_climbs(),
+            "reliability": None if self.reliability is None else self.reliability.to_dict(),
+        }

@@ -173,22 +173,6 @@ def output_error_payload(study: PreparedStudy) -> dict[str, Any]:
     }
 
 
-def local_search_payload(result: CalibrationResult, bounds: np.ndarray) -> dict[str, Any] | None:
-    """The local phase in ``result.json``: its mode, Laplace sd (physical units), stop."""
-    local = result.local_search
-    if local is None:
-        return None
-    span = bounds[1] - bounds[0]
-    return {
-        "mode": (bounds[0] + local.mode * span).tolist(),
-        "laplace_sd": (local.sd * span).tolist(),
-        "log_likelihood": local.log_likelihood,
-        "n_evaluations": local.n_evaluations,
-        "stop_reason": local.stop_reason,
-        "iterations": local.iterations,
-    }
-
-
 def result_payload(
     study: PreparedStudy,
     result: CalibrationResult,
@@ -196,28 +180,11 @@ def result_payload(
     wall_time_s: float,
 ) -> dict[str, Any]:
     """The ``result.json`` content (DESIGN.md fields plus context), physical units."""
-    summary = result.summary.to_dict()
     payload: dict[str, Any] = {
         "parameters": list(study.names),
         "units": list(study.units),
-        "bounds": [[float(lo), float(hi)] for lo, hi in study.bounds.T],
-        "joint_map": summary["joint_map"],
-        "marginal_map": summary["marginal_map"],
-        "interval95": summary["interval95"],
-        "equal_tailed95": summary["equal_tailed95"],
-        "posterior_mean": summary["mean"],
-        "posterior_sd": summary["sd"],
+        **result.to_dict(),  # the calibration's keys, after the names and their units
         "n_simulations": int(n_simulations),
-        "n_evaluations": int(result.n_evaluations),
-        "n_failed_evaluations": int(np.sum(~np.isfinite(result.y))),
-        "stop_reason": result.stop_reason,
-        "best_log_likelihood": float(np.nanmax(result.y)),
-        "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **result.mcmc},
-        "surrogate_check": None if result.check is None else result.check.to_dict(result.box),
-        "search_box": None if result.search_box is None else result.search_box.tolist(),
-        "local_search": local_search_payload(result, study.bounds),
-        "basin_climbs": result.basin_climbs(),
-        "reliability": None if result.reliability is None else result.reliability.to_dict(),
         "reference": None if study.reference is None else study.reference.tolist(),
         "output_error": output_error_payload(study),
         "rig": study.spec.name,

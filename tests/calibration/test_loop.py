@@ -175,7 +175,7 @@ def test_failed_evaluations_are_kept_as_nan_and_avoided() -> None:
     assert reports[-1].n_failed == int(failed.sum())
     assert "best log L" in reports[-1].line()
     payload = result.to_dict()
-    assert json.loads(json.dumps(payload))["n_failed"] == int(failed.sum())
+    assert json.loads(json.dumps(payload))["n_failed_evaluations"] == int(failed.sum())
 
 
 def test_every_failure_raises() -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from susp_bo.calibration.study import run_study
+from susp_bo.json_files import json_ready
 from susp_bo.study_config import ExecutorConfig, load_study_config
 
 pytestmark = pytest.mark.slow
@@ -21,7 +22,12 @@ def test_local_cluster_study_equals_process_pool_study(
     pool_config = load_study_config(
         study_writer(tmp_path, fast_rig, fast_data, tmp_path / "pool", "workers = 2")
     )
-    pool_payload, _ = run_study(pool_config, progress=False)
+    pool_payload, pool_result = run_study(pool_config, progress=False)
+    # the Python API's dict of a result is result.json's calibration part, key for key
+    written = json.loads((tmp_path / "pool" / "result.json").read_text())
+    calibration = json.loads(json.dumps(json_ready(pool_result.to_dict())))  # NaN as null
+    assert calibration == {key: written[key] for key in calibration}
+    assert {"bounds", "posterior_sd", "n_failed_evaluations", "local_search"} <= set(calibration)
 
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
