@@ -12,9 +12,12 @@ carries :func:`budget_too_small` (:mod:`.reliability`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from susp_bo.calibration.design import default_design_size
+
+if TYPE_CHECKING:
+    from susp_bo.study_config import StudyConfig
 
 
 class BudgetTooSmallError(ValueError):
@@ -93,3 +96,31 @@ def budget_too_small(budget: int, requirement: BudgetRequirement) -> dict[str, A
         "budget": int(budget),
         "minimum": requirement.minimum,
     }
+
+
+def calibrated_count(config: StudyConfig) -> int | None:
+    """q of the study (None when the rig or the parameter list is bad: the study reports it)."""
+    from susp_bo.rig.spec import load_rig_spec
+
+    try:
+        return len(config.check_parameters(load_rig_spec(config.rig).calibration_names))
+    except (FileNotFoundError, ValueError):
+        return None
+
+
+def design_for_budget(config: StudyConfig, budget: int) -> int:
+    """The design size for a budget given on the command line (``--budget`` of
+    ``susp-bo calibrate`` and ``susp-bo monitor``): the config's, shrunk when the budget
+    is tight.
+
+    It shrinks to leave one refinement batch and the check points, but not below what q
+    needs (max(10, 5 q)), and never beyond the budget: q = 7 with the default design of 40,
+    batches of 8 and 8 check points gets 40 from a budget of 56 up, budget − 16 from 51 to
+    55, and 35 below (refused unless small budgets are allowed). So the minimum a refusal
+    names is the budget that then runs (the design does not grow with the budget given).
+    """
+    b = config.budget
+    q = calibrated_count(config)
+    room = budget - b.batch_size - b.check_points
+    floor = default_design_size(q) if q is not None else 2
+    return max(2, min(b.initial_design, max(room, floor), budget))

@@ -56,7 +56,9 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
         allow_small = config.budget.allow_small or getattr(args, "allow_small_budget", False)
         if args.budget is not None:
             budget = config.budget
-            design = _design_for_budget(config, args.budget)
+            from susp_bo.calibration.budget import design_for_budget
+
+            design = design_for_budget(config, args.budget)
             if not allow_small:
                 _refuse_small_budget(config, args.budget, design)
             try:
@@ -101,42 +103,15 @@ def _check_scheduler_flag(address: str) -> None:
         )
 
 
-def _calibrated_count(config: StudyConfig) -> int | None:
-    """q of the study (None when the rig or the parameter list is bad: the study reports it)."""
-    from susp_bo.rig.spec import load_rig_spec
-
-    try:
-        return len(config.check_parameters(load_rig_spec(config.rig).calibration_names))
-    except (FileNotFoundError, ValueError):
-        return None
-
-
-def _design_for_budget(config: StudyConfig, budget: int) -> int:
-    """The design size for ``--budget``: the config's, shrunk when the budget is tight.
-
-    It shrinks to leave one refinement batch and the check points, but not below what q
-    needs (max(10, 5 q)), and never beyond the budget: q = 7 with the default design of 40,
-    batches of 8 and 8 check points gets 40 from a budget of 56 up, budget − 16 from 51 to
-    55, and 35 below (refused unless --allow-small-budget).
-    """
-    from susp_bo.calibration.design import default_design_size
-
-    b = config.budget
-    q = _calibrated_count(config)
-    room = budget - b.batch_size - b.check_points
-    floor = default_design_size(q) if q is not None else 2
-    return max(2, min(b.initial_design, max(room, floor), budget))
-
-
 def _refuse_small_budget(config: StudyConfig, budget: int, design: int) -> None:
     """Refuses ``--budget`` below the minimum for the study's q parameters.
 
     Raises:
         UsageError: naming --budget, the value and the minimum.
     """
-    from susp_bo.calibration.budget import budget_message, budget_requirement
+    from susp_bo.calibration.budget import budget_message, budget_requirement, calibrated_count
 
-    q = _calibrated_count(config)
+    q = calibrated_count(config)
     if q is None:
         return
     b = config.budget

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo import __version__
+from susp_bo.calibration.budget import design_for_budget
 from susp_bo.calibration.study import RESULT_NAME, SAMPLES_NAME, run_study
 from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study
@@ -160,7 +161,7 @@ def base_config(
                 budget=dataclasses.replace(
                     config.budget,
                     max_evaluations=int(budget),
-                    initial_design=min(config.budget.initial_design, int(budget)),
+                    initial_design=design_for_budget(config, int(budget)),
                 ),
             )
     except (ValueError, TypeError) as error:

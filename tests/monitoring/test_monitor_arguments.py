@@ -4,13 +4,16 @@
 from __future__ import annotations
 
 import shutil
+import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+import tomli_w
 
 import susp_bo
+from susp_bo.calibration.budget import budget_requirement, calibrated_count
 from susp_bo.cli import main
 from susp_bo.monitoring.runner import MonitorError, base_config
 
@@ -128,3 +131,24 @@ def test_the_python_api_names_the_bad_argument(
     with pytest.raises(MonitorError, match=expected):
         susp_bo.monitor(folder, tmp_path / "out", progress=False, **arguments)
     assert not (tmp_path / "out").exists()
+
+
+def test_the_minimum_a_small_budget_is_told_is_a_budget_that_runs(
+    folder: Path, tmp_path: Path
+) -> None:
+    """The design was cut to the budget, so the minimum named for --budget 5 (26) was
+    refused in turn (minimum 42 with a design of 26), and that one too (56)."""
+    own = tmp_path / "campaigns"
+    shutil.copytree(folder, own)
+    settings = tomllib.loads((own / "monitor.toml").read_text())
+    del settings["budget"]  # the default design of 40 points, batches of 8, 8 check points
+    (own / "monitor.toml").write_text(tomli_w.dumps(settings))
+    small = base_config(own, tmp_path / "out", budget=5)
+    q = calibrated_count(small)
+    assert q is not None
+    b = small.budget
+    minimum = budget_requirement(q, b.initial_design, b.batch_size, b.check_points).minimum
+    assert minimum > 5
+    enough = base_config(own, tmp_path / "out", budget=minimum).budget
+    again = budget_requirement(q, enough.initial_design, enough.batch_size, enough.check_points)
+    assert again.minimum == minimum
