@@ -59,19 +59,23 @@ def _recompute_hint(folder: Path) -> str:
     )
 
 
-def read_finished(folder: Path, names: Sequence[str]) -> tuple[dict[str, Any], np.ndarray]:
+def read_finished(
+    folder: Path, names: Sequence[str], units: Sequence[str] | None = None
+) -> tuple[dict[str, Any], np.ndarray]:
     """The ``result.json`` payload and the (n x q) posterior draws of a finished campaign.
 
     Args:
         folder: the campaign's results folder.
         names: (q,) the parameters this monitoring run calibrates, in order.
+        units: (q,) their units in the rig now (checked against the result's), or None.
 
     Returns:
         The payload and the draws (physical units, calibration order).
 
     Raises:
         CampaignResultError: an unreadable or damaged ``result.json`` or
-            ``posterior_samples.npy``, or a result of other parameters.
+            ``posterior_samples.npy``, draws that are not the ones the result summarises
+            (:func:`draws_mismatch`), or a result of other parameters or units.
     """
     path = folder / RESULT_NAME
     try:
@@ -105,9 +109,67 @@ def read_finished(folder: Path, names: Sequence[str]) -> tuple[dict[str, Any], n
         problem = f"shape {samples.shape}, expected (n x {len(names)}) draws of {list(names)}"
     elif samples.dtype.kind != "f" or not np.all(np.isfinite(samples)):
         problem = f"draws of dtype {samples.dtype} with non-finite or non-float values"
+    if not problem:
+        problem = draws_mismatch(result, samples)
     if problem:
         raise CampaignResultError(f"{samples_path}: {problem}; {_recompute_hint(folder)}")
+    if units is not None and result.get("units") != list(units):
+        raise CampaignResultError(
+            f"{path} was calibrated with units {result.get('units')} for {list(names)}; the "
+            f"rig now says {list(units)}: a unit changed in the rig file would relabel the "
+            "finished results without converting them; restore the rig's unit, or use "
+            "another --out (nothing was changed)"
+        )
     return result, samples
+
+
+MEAN_TOLERANCE_SD = 0.2
+"""How far (posterior sd) the mean of the saved draws may lie from ``posterior_mean``: the
+file holds the draws thinned with a regular stride (|z| <= 0.015 measured on 1 + 7-D
+results), a file of another campaign or parameter lies whole sd away."""
+
+
+def draws_mismatch(result: dict[str, Any], samples: np.ndarray) -> str:
+    """Why the (n x q) draws cannot be the draws ``result`` summarises; "" when they can.
+
+    The draws must lie inside the result's ``bounds`` (C_w) and have its ``posterior_mean``
+    within :data:`MEAN_TOLERANCE_SD` sd and its ``posterior_sd`` within a factor 1.25:
+    the file is a thinned copy of the draws the summary was computed from, so a file
+    swapped with another campaign's, restored from another run or written by hand is told.
+    """
+    q = samples.shape[1]
+    try:
+        bounds = np.asarray(result["bounds"], dtype=np.float64)
+        mean = np.asarray(result["posterior_mean"], dtype=np.float64)
+        sd = np.asarray(result["posterior_sd"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        return "its result.json has no usable bounds, posterior_mean and posterior_sd to check it"
+    if bounds.shape != (q, 2) or mean.shape != (q,) or sd.shape != (q,):
+        return "its result.json's bounds, posterior_mean or posterior_sd are not of q values"
+    names = list(result["parameters"])
+    span = bounds[:, 1] - bounds[:, 0]
+    slack = 1e-9 * span
+    outside = np.any((samples < bounds[:, 0] - slack) | (samples > bounds[:, 1] + slack), axis=0)
+    if outside.any():
+        which = [n for n, o in zip(names, outside, strict=True) if o]
+        return f"draws outside the admissible interval C_w of {which} (result.json's bounds)"
+    scale = np.maximum(sd, slack)
+    z = (samples.mean(axis=0) - mean) / scale
+    ratio = np.maximum(samples.std(axis=0), slack) / scale
+    bad = (np.abs(z) > MEAN_TOLERANCE_SD) | (ratio > 1.25) | (ratio < 0.8)
+    if bad.any():
+        which = [
+            f"{n} (draws' mean {m:.6g}, sd {d:.3g}; result.json {mu:.6g}, {s:.3g})"
+            for n, m, d, mu, s, b in zip(
+                names, samples.mean(axis=0), samples.std(axis=0), mean, sd, bad, strict=True
+            )
+            if b
+        ]
+        return (
+            "not the draws its result.json summarises (another campaign's or another run's?): "
+            + "; ".join(which)
+        )
+    return ""
 
 
 def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folder: Path) -> None:

@@ -372,6 +372,8 @@ def check_campaign(
             config, budget=dataclasses.replace(config.budget, allow_small=True)
         )
     study = prepare_study(config, resume=(config.out / STORE_NAME).exists())
+    if state == "finished":  # the units the rig gives now are the result's
+        read_finished(config.out, names, study.units)
     if state != "new":
         check_campaign_store(study, finished=state == "finished", campaign_folder=campaign.folder)
     return study.bounds
@@ -393,7 +395,7 @@ def build_report(
     for campaign in campaigns:
         cid = campaign.campaign_id
         folder = configs[cid].out
-        result, samples = read_finished(folder, names)
+        result, samples = read_finished(folder, names, [parameters[n].unit for n in names])
         trusted, why = trust(result)
         summaries = {
             name: summarise_parameter(name, samples[:, k], acceptable[name])

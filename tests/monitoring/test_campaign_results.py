@@ -4,6 +4,7 @@ exit code 2 before any work, naming the folder and what to do, and nothing is ch
 
 from __future__ import annotations
 
+import json
 import shutil
 import sqlite3
 from pathlib import Path
@@ -192,4 +193,46 @@ def test_damaged_posterior_draws_are_refused(
     assert _monitor(copy) == 2
     err = capsys.readouterr().err
     assert f"{path}: " in err and problem in err and "Traceback" not in err
+    assert _files(copy["out"]) == before
+
+
+@pytest.mark.parametrize(
+    ("change", "problem"),
+    [
+        (lambda d, b: np.full_like(d, 1e9), "draws outside the admissible interval C_w"),
+        (  # another campaign's draws: inside C_w, a whole posterior away from this one's
+            lambda d, b: np.clip(d + 0.1 * (b[:, 1] - b[:, 0]), b[:, 0], b[:, 1]),
+            "not the draws its result.json summarises",
+        ),
+    ],
+    ids=["outside-C_w", "shifted"],
+)
+def test_draws_that_are_not_the_results_are_refused(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str], change: Any, problem: str
+) -> None:
+    """A swapped or hand-written posterior_samples.npy drove P(outside) and the alarms."""
+    path = copy["out"] / B / "posterior_samples.npy"
+    bounds = np.array(json.loads((copy["out"] / B / "result.json").read_text())["bounds"])
+    np.save(path, change(np.load(path), bounds))
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: " in err and problem in err and "Traceback" not in err
+    assert _files(copy["out"]) == before
+
+
+def test_a_unit_changed_in_the_rig_does_not_relabel_finished_results(
+    copy: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    result = json.loads((copy["out"] / B / "result.json").read_text())
+    rig = tmp_path / "rig_kilo.toml"
+    text = copy["rig"].read_text()
+    unit = result["units"][0]
+    assert f'unit = "{unit}"' in text
+    rig.write_text(text.replace(f'unit = "{unit}"', f'unit = "k{unit}"'))
+    before = _files(copy["out"])
+    command = ["monitor", str(copy["folder"]), "--out", str(copy["out"]), "--workers", "0"]
+    assert main([*command, "--rig", str(rig)]) == 2
+    err = capsys.readouterr().err
+    assert f"was calibrated with units {result['units']}" in err and "Traceback" not in err
     assert _files(copy["out"]) == before
