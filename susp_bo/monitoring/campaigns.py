@@ -14,11 +14,16 @@ vehicle, date and (optionally) line — comes from
 2. else the runs' metadata (keys ``vehicle``, ``date``, ``line``; every run of
    the folder must agree).
 
-Discovery fails with one clear message (naming the folder and what to fix) on a
-missing vehicle or date, runs of different vehicles or dates in one campaign,
-a manifest that contradicts its runs, or two campaigns of the same vehicle on
-the same date (or of two vehicles whose names give the same results folder, e.g.
-``etc`` and ``../../etc``).
+Discovery fails with one clear message (naming the folder or file and what to fix)
+on a missing vehicle or date, a vehicle id with leading or trailing whitespace,
+runs of different vehicles or dates in one campaign, a manifest that contradicts
+its runs, a ``campaign.toml`` in a folder without measured runs (an empty or
+not yet imported campaign — CSV/MATLAB files get the ``susp-bo import`` hint — or
+a manifest in a parent folder: a manifest applies only to the runs in its own
+folder), two campaigns of the same vehicle on the same date, or two vehicle ids
+that differ only in letter case or whose names give the same results folder
+(e.g. ``etc`` and ``../../etc``): two vehicles never share a campaign id or a
+results folder.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from susp_bo.data.measured import RUN_SUFFIXES, MeasuredDataError, load_run, run
 
 MANIFEST_NAME = "campaign.toml"
 _MANIFEST_KEYS = ("vehicle", "date", "line")
+_IMPORTED = (".csv", ".mat")  # what ``susp-bo import`` converts to measured runs
 
 
 class CampaignError(ValueError):
@@ -119,6 +125,121 @@ def _manifest(folder: Path) -> dict[str, Any] | None:
     return data
 
 
+def _import_hint(folder: Path, name: str = "it") -> str:
+    """A hint when ``folder`` holds CSV or MATLAB files (runs not yet imported), else ``""``.
+
+    Worded as ``susp-bo calibrate``'s hint (``"; it holds 2 .csv files: convert them …"``,
+    ``name`` in place of "it"), but the runs go into the campaign folder itself (next to its
+    ``campaign.toml``), not into a new folder.
+    """
+    found = {
+        suffix[1:]: sum(1 for p in folder.iterdir() if p.is_file() and p.suffix.lower() == suffix)
+        for suffix in _IMPORTED
+    }
+    kinds = [kind for kind, count in found.items() if count]
+    if not kinds:
+        return ""
+    listed = " and ".join(f"{found[kind]} .{kind} files" for kind in kinds)
+    return (
+        f"; {name} holds {listed}: convert them to the HDF5 measured-run format first, e.g. "
+        f"susp-bo import {kinds[0]} {folder} --out {folder} --rig RIG"
+    )
+
+
+def _check_manifest_folders(root: Path, run_folders: list[Path]) -> None:
+    """Refuse a ``campaign.toml`` in a folder that holds no measured runs.
+
+    Raises:
+        CampaignError: naming the manifest, what it lacks and what to do — for a
+            manifest above campaign folders, those folders (it is not inherited).
+    """
+    with_runs = set(run_folders)
+    for manifest in sorted(root.rglob(MANIFEST_NAME)):
+        folder = manifest.parent
+        if not manifest.is_file() or folder in with_runs:
+            continue
+        below = [f for f in run_folders if folder in f.parents]
+        if below:
+            listed = ", ".join(str(f) for f in below[:3]) + (", …" if len(below) > 3 else "")
+            raise CampaignError(
+                f"{manifest}: a {MANIFEST_NAME} applies only to the measured runs in its own "
+                f"folder, and {folder} holds none (*.h5, *.hdf5); it is not inherited by the "
+                f"campaign folders below it ({listed}){_import_hint(folder)}; move it into the "
+                "campaign folder it describes (one per campaign) or delete it"
+            )
+        raise CampaignError(
+            f"{folder}: has a {MANIFEST_NAME} but holds no measured runs (*.h5, *.hdf5)"
+            f"{_import_hint(folder)}; put the campaign's runs next to its {MANIFEST_NAME}, "
+            "or remove the folder if the campaign does not exist"
+        )
+
+
+def _check_vehicle(value: object, where: str) -> None:
+    """Refuse a vehicle id with leading or trailing whitespace.
+
+    Raises:
+        CampaignError: naming ``where``, the value and what is allowed.
+    """
+    text = str(value)
+    if text != text.strip():
+        expected = (
+            f"write it without the whitespace ({text.strip()!r})"
+            if text.strip()
+            else "expected a vehicle id"
+        )
+        raise CampaignError(
+            f"{where}: vehicle {text!r} has leading or trailing whitespace, which is not "
+            f"allowed (it would be another vehicle with the same results folder); {expected}"
+        )
+
+
+def _vehicle_source(campaign: Campaign) -> str:
+    """Where the vehicle of ``campaign`` is given: its manifest, or its runs' metadata."""
+    manifest = _manifest(campaign.folder)
+    if manifest is not None and "vehicle" in manifest:
+        return str(campaign.folder / MANIFEST_NAME)
+    return f"{campaign.folder}, run metadata"
+
+
+def _check_vehicle_names(root: Path, campaigns: list[Campaign]) -> None:
+    """Refuse two vehicle ids equal once letter case is ignored, or with one results folder.
+
+    Raises:
+        CampaignError: naming both vehicles and where each is given.
+    """
+    first: dict[str, Campaign] = {}
+    for campaign in sorted(campaigns, key=lambda c: (c.vehicle, c.date)):
+        first.setdefault(campaign.vehicle, campaign)
+    by_case: dict[str, Campaign] = {}
+    by_folder: dict[str, Campaign] = {}
+    for vehicle, campaign in first.items():
+        case_key, folder_key = vehicle.casefold(), safe_name(vehicle).casefold()
+        other = by_case.get(case_key) or by_folder.get(folder_key)
+        if other is not None:
+            both = (
+                f"vehicle {other.vehicle!r} ({_vehicle_source(other)}) and vehicle "
+                f"{vehicle!r} ({_vehicle_source(campaign)})"
+            )
+            if other.vehicle.casefold() == case_key:
+                problem = (
+                    "differ only in letter case, which is not allowed: two vehicles must not "
+                    f"share campaign ids and results folders ({safe_name(other.vehicle)!r} and "
+                    f"{safe_name(vehicle)!r} are one folder where case is not told apart)"
+                )
+            else:
+                problem = (
+                    f"would share the results folder {safe_name(vehicle)!r} and its campaign "
+                    f"ids '{safe_name(vehicle)}/<date>' (a vehicle's results folder keeps only "
+                    "letters, digits, '-', '_' and '.')"
+                )
+            raise CampaignError(
+                f"{root}: {both} {problem}; if they are one vehicle, spell it the same way "
+                f"everywhere, else rename one of them in its {MANIFEST_NAME} or run metadata"
+            )
+        by_case[case_key] = campaign
+        by_folder[folder_key] = campaign
+
+
 def _agreed(values: dict[Path, object], key: str, folder: Path) -> object:
     """The one value every run gives for ``key`` (None if no run gives it)."""
     given = {path: value for path, value in values.items() if value not in (None, "")}
@@ -143,8 +264,9 @@ def read_campaign(folder: str | Path) -> Campaign:
     """The campaign of one folder of measured runs.
 
     Raises:
-        CampaignError: no runs, unreadable runs, missing vehicle or date,
-            disagreeing runs, or a manifest that contradicts the runs.
+        CampaignError: no runs, unreadable runs, missing vehicle or date, a vehicle
+            with leading or trailing whitespace, disagreeing runs, or a manifest that
+            contradicts the runs.
     """
     folder = Path(folder)
     paths = run_paths(folder)
@@ -161,6 +283,13 @@ def read_campaign(folder: str | Path) -> Campaign:
         for key in _MANIFEST_KEYS
     }
     manifest = _manifest(folder)
+    if manifest is not None and manifest.get("vehicle") not in (None, ""):
+        _check_vehicle(manifest["vehicle"], str(folder / MANIFEST_NAME))
+    if from_runs["vehicle"] not in (None, ""):
+        _check_vehicle(
+            from_runs["vehicle"],
+            f"{folder}: run metadata of {', '.join(p.name for p in paths)}",
+        )
     values = dict(from_runs)
     if manifest is not None:
         for key, value in manifest.items():
@@ -201,9 +330,10 @@ def discover_campaigns(folder: str | Path) -> list[Campaign]:
     """Every campaign under ``folder``, sorted by vehicle then date.
 
     Raises:
-        CampaignError: no campaign at all, a campaign that cannot be identified,
-            or two campaigns of the same vehicle on the same date (or of two vehicles
-            whose names give the same results folder: both named as given).
+        CampaignError: no campaign at all, a ``campaign.toml`` in a folder without
+            measured runs, a campaign that cannot be identified, two campaigns of the
+            same vehicle on the same date, or two vehicles whose ids differ only in
+            letter case or give the same results folder (both named as given).
     """
     root = Path(folder)
     if not root.is_dir():
@@ -211,22 +341,20 @@ def discover_campaigns(folder: str | Path) -> list[Campaign]:
     folders = sorted(
         {p.parent for p in root.rglob("*") if p.is_file() and p.suffix in RUN_SUFFIXES}
     )
+    _check_manifest_folders(root, folders)
     if not folders:
+        unimported = sorted(
+            {p.parent for p in root.rglob("*") if p.is_file() and p.suffix.lower() in _IMPORTED}
+        )
         raise CampaignError(
             f"{root}: holds no campaign (no folder with measured runs *.h5, *.hdf5)"
+            + (_import_hint(unimported[0], str(unimported[0])) if unimported else "")
         )
     campaigns = [read_campaign(f) for f in folders]
+    _check_vehicle_names(root, campaigns)
     seen: dict[str, Campaign] = {}
     for campaign in campaigns:
         other = seen.get(campaign.campaign_id)
-        if other is not None and other.vehicle != campaign.vehicle:
-            raise CampaignError(
-                f"{root}: vehicle {other.vehicle!r} ({other.folder}) and vehicle "
-                f"{campaign.vehicle!r} ({campaign.folder}) on {campaign.date.isoformat()} "
-                f"would share the same results folder {campaign.campaign_id!r} (a vehicle's "
-                "results folder keeps only letters, digits, '-', '_' and '.'); rename one of "
-                f"the vehicles in its {MANIFEST_NAME} or run metadata"
-            )
         if other is not None:
             raise CampaignError(
                 f"{root}: two campaigns of vehicle {campaign.vehicle!r} on "

@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import itertools
 import json
+import math
+import numbers
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -31,6 +34,7 @@ from susp_bo.calibration.budget import budget_requirement
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.monitoring.alarms import CampaignRecord, apply_alarms
+from susp_bo.monitoring.campaigns import MANIFEST_NAME, safe_name
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 
@@ -64,16 +68,100 @@ def write_campaign(
     noise_m_s2: float,
     line: str = "synthetic test line",
 ) -> Path:
-    """``nu`` synthetic runs of one campaign, with its metadata and manifest, in ``folder``."""
-    folder.mkdir(parents=True, exist_ok=True)
+    """``nu`` synthetic runs of one campaign, with its metadata and manifest, in ``folder``.
+
+    The values are written as given (a vehicle that discovery refuses can be written, to
+    test the refusal); the manifest is written last, so its presence marks a finished
+    campaign.
+    """
     runs = synthesize_runs(spec, truth, nu=nu, seed=seed, noise_m_s2=noise_m_s2)
+    folder.mkdir(parents=True, exist_ok=True)
     for index, run in enumerate(runs):
         metadata = {**run.metadata, "vehicle": vehicle, "date": date.isoformat(), "line": line}
         save_run(dataclasses.replace(run, metadata=metadata), folder / f"run_{index:03d}.h5")
-    (folder / "campaign.toml").write_text(
-        f'vehicle = "{vehicle}"\ndate = {date.isoformat()}\nline = "{line}"\n'
-    )
+    write_manifest(folder, vehicle=vehicle, date=date, line=line)
     return folder
+
+
+def write_manifest(folder: Path, *, vehicle: str, date: dt.date, line: str = "") -> Path:
+    """``folder/campaign.toml`` with ``vehicle``, ``date`` (a TOML date) and ``line``.
+
+    Written by a TOML writer, so any string (quotes, backslashes, new lines) reads back as
+    given.
+    """
+    path = folder / MANIFEST_NAME
+    path.write_text(
+        tomli_w.dumps({"vehicle": vehicle, "date": date, "line": line}), encoding="utf-8"
+    )
+    return path
+
+
+def _check_scenario_arguments(
+    n_campaigns: object, vehicles: object, dates: object
+) -> tuple[list[str], list[dt.date]]:
+    """The vehicle ids and dates of :func:`write_scenario`, checked.
+
+    ``dates`` None gives :func:`campaign_dates` (``n_campaigns`` of them).
+
+    Raises:
+        ValueError: naming the argument, the value and what is allowed.
+    """
+    if isinstance(n_campaigns, bool) or not isinstance(n_campaigns, int) or n_campaigns < 2:
+        raise ValueError(
+            f"n_campaigns: got {n_campaigns!r}; expected an integer >= 2 (the degradation runs "
+            "from the nominal at the first campaign to final at the last)"
+        )
+    if isinstance(vehicles, (str, bytes)) or not isinstance(vehicles, Sequence):
+        raise ValueError(
+            f"vehicles: got {vehicles!r}; expected a sequence of vehicle ids, e.g. "
+            f"({DEGRADING!r}, {HEALTHY!r}) or ({DEGRADING!r},) (a string is not a sequence of ids)"
+        )
+    names = list(vehicles)
+    if not names:
+        raise ValueError(
+            "vehicles: got an empty sequence; expected 1 or more vehicle ids (the first "
+            "degrades, the others stay healthy)"
+        )
+    for name in names:
+        if not isinstance(name, str) or not name or safe_name(name) != name:
+            raise ValueError(
+                f"vehicles: {name!r} is not allowed; expected a non-empty string of letters, "
+                "digits, '-', '_' and '.' that does not start or end with '.' or '_' (it is "
+                "the vehicle's folder name, as given)"
+            )
+    folded = [name.casefold() for name in names]
+    repeated = sorted({n for n, f in zip(names, folded) if folded.count(f) > 1})
+    if repeated:
+        raise ValueError(
+            f"vehicles: {repeated} given more than once (letter case ignored) in {names}; "
+            "expected distinct vehicle ids"
+        )
+    if dates is None:
+        return names, campaign_dates(n_campaigns)
+    if isinstance(dates, (str, bytes)) or not isinstance(dates, Sequence):
+        raise ValueError(
+            f"dates: got {dates!r}; expected a sequence of datetime.date values, one per campaign"
+        )
+    checked: list[dt.date] = []
+    for date in dates:
+        if not isinstance(date, dt.date) or isinstance(date, dt.datetime):
+            raise ValueError(
+                f"dates: {date!r} is not allowed; expected datetime.date values (no time)"
+            )
+        checked.append(date)
+    if len(checked) != n_campaigns:
+        raise ValueError(
+            f"dates: {len(checked)} given for n_campaigns = {n_campaigns}; expected one date "
+            "per campaign"
+        )
+    for earlier, later in itertools.pairwise(checked):
+        if not earlier < later:
+            raise ValueError(
+                f"dates: {[d.isoformat() for d in checked]} are not strictly increasing "
+                f"({earlier.isoformat()} then {later.isoformat()}); expected distinct dates in "
+                "increasing order (the degradation follows them)"
+            )
+    return names, checked
 
 
 def write_scenario(
@@ -105,15 +193,32 @@ def write_scenario(
 
     Returns:
         ``{"parameter", "dates", "truth": {vehicle: [value per campaign]}}``.
+
+    Raises:
+        ValueError: before anything is written, naming the argument, the value and what is
+            allowed: a parameter outside the calibration set, a ``final`` the rig refuses,
+            ``n_campaigns`` below 2, ``vehicles`` a string, empty, with an id that is not a
+            plain folder name or repeated (letter case ignored), ``dates`` not one
+            ``datetime.date`` per campaign in strictly increasing order, or a bad ``nu``,
+            ``seed`` or ``noise_m_s2``.
     """
     root = Path(folder)
     names = spec.calibration_names
     if parameter not in names:
         raise ValueError(f"parameter: {parameter!r} is not in the calibration set {list(names)}")
     nominal = float(spec.parameters[parameter])
-    dates = list(dates) if dates is not None else campaign_dates(n_campaigns)
-    if len(dates) != n_campaigns:
-        raise ValueError(f"dates: {len(dates)} given for n_campaigns = {n_campaigns}")
+    vehicles, dates = _check_scenario_arguments(n_campaigns, vehicles, dates)
+    try:
+        spec.with_parameters({parameter: final})
+    except ValueError as error:
+        raise ValueError(f"final: {error}") from None
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ValueError(f"seed: got {seed!r}; expected an integer >= 0")
+    if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
+        raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
+    real = isinstance(noise_m_s2, numbers.Real) and not isinstance(noise_m_s2, bool)
+    if not (real and math.isfinite(noise_m_s2) and noise_m_s2 >= 0.0):
+        raise ValueError(f"noise_m_s2: got {noise_m_s2!r}; expected a finite value >= 0 m/s^2")
     values = {
         vehicles[0]: linear_degradation(nominal, final, n_campaigns),
         **{v: np.full(n_campaigns, nominal) for v in vehicles[1:]},
@@ -121,7 +226,7 @@ def write_scenario(
     for v, vehicle in enumerate(vehicles):
         for k, date in enumerate(dates):
             target = root / vehicle / date.isoformat()
-            if (target / "campaign.toml").is_file():
+            if (target / MANIFEST_NAME).is_file():
                 continue
             write_campaign(
                 spec,

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import tomli_w
 
 from susp_bo.data.measured import MeasuredRun, save_run
 from susp_bo.monitoring.campaigns import CampaignError, discover_campaigns, read_campaign
@@ -119,9 +120,9 @@ def test_two_vehicles_whose_names_make_one_results_folder_are_both_named(tmp_pat
     with pytest.raises(CampaignError) as raised:
         discover_campaigns(tmp_path)
     message = str(raised.value)
-    assert f"vehicle 'etc' ({first})" in message
-    assert f"vehicle '../../etc' ({second})" in message
-    assert "same results folder 'etc/2026-01-01'" in message
+    assert f"vehicle 'etc' ({first / 'campaign.toml'})" in message
+    assert f"vehicle '../../etc' ({second / 'campaign.toml'})" in message
+    assert "would share the results folder 'etc'" in message
     assert "merge their runs" not in message  # two vehicles: renaming one is the fix
 
 
@@ -136,3 +137,112 @@ def test_replace_keeps_campaign_frozen(tmp_path: Path) -> None:
     campaign = read_campaign(_campaign(tmp_path / "c", {"vehicle": "A", "date": "2026-01-01"}))
     with pytest.raises(dataclasses.FrozenInstanceError):
         campaign.vehicle = "B"  # type: ignore[misc]
+
+
+def test_two_vehicles_with_one_results_folder_are_refused_on_different_dates(
+    tmp_path: Path,
+) -> None:
+    """'etc' and '../../etc' on two dates: one results folder 'etc' for two vehicles."""
+    first = _campaign(tmp_path / "a", {}, manifest='vehicle = "etc"\ndate = 2026-01-01\n')
+    second = _campaign(tmp_path / "b", {}, manifest='vehicle = "../../etc"\ndate = 2026-02-01\n')
+    with pytest.raises(CampaignError) as raised:
+        discover_campaigns(tmp_path)
+    message = str(raised.value)
+    assert str(first / "campaign.toml") in message and str(second / "campaign.toml") in message
+    assert "would share the results folder 'etc'" in message
+
+
+@pytest.mark.parametrize("vehicle", ["TRAIN-A ", " TRAIN-A", "TRAIN-A\t", "  "])
+def test_a_vehicle_with_surrounding_whitespace_in_a_manifest_is_refused(
+    tmp_path: Path, vehicle: str
+) -> None:
+    manifest = tomli_w.dumps({"vehicle": vehicle, "date": dt.date(2026, 4, 15)})
+    folder = _campaign(tmp_path / "c", {}, manifest=manifest)
+    with pytest.raises(CampaignError, match="leading or trailing whitespace") as raised:
+        read_campaign(folder)
+    message = str(raised.value)
+    assert message.startswith(f"{folder / 'campaign.toml'}: vehicle {vehicle!r}")
+
+
+def test_a_vehicle_with_surrounding_whitespace_in_run_metadata_is_refused(tmp_path: Path) -> None:
+    folder = _campaign(tmp_path / "c", {"vehicle": "TRAIN-A ", "date": "2026-04-15"})
+    with pytest.raises(CampaignError, match="leading or trailing whitespace") as raised:
+        read_campaign(folder)
+    message = str(raised.value)
+    assert str(folder) in message and "run_000.h5" in message and "'TRAIN-A '" in message
+    assert "without the whitespace ('TRAIN-A')" in message
+
+
+def test_the_testers_three_spellings_of_one_vehicle_are_refused(tmp_path: Path) -> None:
+    """'TRAIN-A', 'TRAIN-A ' and 'train-a' were three vehicles, two sharing id and folder."""
+    spellings = (("TRAIN-A", "2026-03-15"), ("TRAIN-A ", "2026-04-15"), ("train-a", "2026-05-15"))
+    for index, (name, date) in enumerate(spellings):
+        _campaign(
+            tmp_path / f"v{index}" / date, {}, manifest=f'vehicle = "{name}"\ndate = {date}\n'
+        )
+    with pytest.raises(CampaignError, match=r"vehicle 'TRAIN-A ' has leading or trailing"):
+        discover_campaigns(tmp_path)
+
+
+def test_vehicle_ids_equal_but_for_letter_case_are_refused(tmp_path: Path) -> None:
+    upper = _campaign(
+        tmp_path / "A" / "march", {}, manifest='vehicle = "TRAIN-A"\ndate = 2026-03-15\n'
+    )
+    lower = _campaign(tmp_path / "a" / "april", {"vehicle": "train-a", "date": "2026-04-15"})
+    with pytest.raises(CampaignError, match="differ only in letter case") as raised:
+        discover_campaigns(tmp_path)
+    message = str(raised.value)
+    assert f"vehicle 'TRAIN-A' ({upper / 'campaign.toml'})" in message
+    assert f"vehicle 'train-a' ({lower}, run metadata)" in message
+
+
+def test_a_campaign_toml_without_runs_is_refused(tmp_path: Path) -> None:
+    """An empty campaign next to a real one was silently left out."""
+    _campaign(tmp_path / "TRAIN-A" / "2026-03-15", {"vehicle": "TRAIN-A", "date": "2026-03-15"})
+    empty = tmp_path / "TRAIN-A" / "2026-04-15"
+    empty.mkdir(parents=True)
+    (empty / "campaign.toml").write_text('vehicle = "TRAIN-A"\ndate = 2026-04-15\n')
+    with pytest.raises(CampaignError) as raised:
+        discover_campaigns(tmp_path)
+    message = str(raised.value)
+    assert message.startswith(f"{empty}: has a campaign.toml but holds no measured runs")
+    assert "susp-bo import" not in message
+
+
+def test_a_campaign_of_csv_files_not_yet_imported_gets_the_import_hint(tmp_path: Path) -> None:
+    _campaign(tmp_path / "TRAIN-A" / "2026-03-15", {"vehicle": "TRAIN-A", "date": "2026-03-15"})
+    raw = tmp_path / "TRAIN-A" / "2026-04-15"
+    raw.mkdir(parents=True)
+    (raw / "campaign.toml").write_text('vehicle = "TRAIN-A"\ndate = 2026-04-15\n')
+    for role in ("accelerations", "geometry"):
+        (raw / f"run1_{role}.csv").write_text("x\n")
+    with pytest.raises(CampaignError) as raised:
+        discover_campaigns(tmp_path)
+    message = str(raised.value)
+    assert message.startswith(f"{raw}: has a campaign.toml but holds no measured runs")
+    assert "it holds 2 .csv files: convert them to the HDF5 measured-run format first" in message
+    assert f"susp-bo import csv {raw} --out {raw} --rig RIG" in message
+
+
+def test_a_folder_of_csv_files_only_gets_the_import_hint(tmp_path: Path) -> None:
+    raw = tmp_path / "TRAIN-A" / "2026-04-15"
+    raw.mkdir(parents=True)
+    (raw / "run1_accelerations.csv").write_text("x\n")
+    with pytest.raises(CampaignError, match="holds no campaign") as raised:
+        discover_campaigns(tmp_path)
+    assert f"{raw} holds 1 .csv files: convert them" in str(raised.value)
+
+
+@pytest.mark.parametrize("parent", [".", "TRAIN-A"])
+def test_a_campaign_toml_in_a_parent_folder_is_refused(tmp_path: Path, parent: str) -> None:
+    """A manifest is not inherited: one above the campaign folders is refused, not ignored."""
+    campaign = _campaign(
+        tmp_path / "TRAIN-A" / "2026-03-15", {"vehicle": "TRAIN-A", "date": "2026-03-15"}
+    )
+    stray = tmp_path / parent / "campaign.toml"
+    stray.write_text('vehicle = "TRAIN-A"\n')
+    with pytest.raises(CampaignError) as raised:
+        discover_campaigns(tmp_path)
+    message = str(raised.value)
+    assert message.startswith(f"{stray}: a campaign.toml applies only to the measured runs")
+    assert f"not inherited by the campaign folders below it ({campaign})" in message
