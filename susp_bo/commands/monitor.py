@@ -101,25 +101,54 @@ def run_monitor(args: argparse.Namespace) -> int:
         )
     except MonitorError as error:
         raise UsageError(str(error)) from None
-    print(format_table(payload), file=sys.stderr)
+    print(format_table(payload, args.out), file=sys.stderr)
     return 0
 
 
-def format_table(payload: dict[str, Any]) -> str:
-    """The maintenance table and the campaigns not used for alarms, as plain text."""
+def format_table(payload: dict[str, Any], out: str | Path = "OUT") -> str:
+    """The maintenance table, what it cannot say and the campaigns not used for alarms.
+
+    Args:
+        payload: the ``monitor.json`` payload.
+        out: the results folder (named in the recalibration advice).
+    """
     lines = []
     rows = payload["maintenance"]
     if rows:
         lines.append("maintenance:")
         for row in rows:
+            side = (
+                "outside (on both sides: the posterior is wider than the domain, the side "
+                "cannot be told)"
+                if row["direction"] == "both"
+                else row["direction"]
+            )
             lines.append(
-                f"  {row['vehicle']}: {row['parameter']} ({row['part']}) {row['direction']} "
+                f"  {row['vehicle']}: {row['parameter']} ({row['part']}) {side} "
                 f"its acceptable domain since {row['since_campaign']}, "
                 f"P = {row['probability']:.3f} "
                 f"(last trusted campaign {row['last_trusted_campaign']})"
             )
     else:
         lines.append("maintenance: no alarm")
+    for row in payload.get("attention", []):
+        if not row["last_trusted"]:
+            basis = (
+                f"the table rests on {row['last_trusted_campaign']}"
+                if row["last_trusted_campaign"]
+                else "no campaign of this vehicle is trusted"
+            )
+            lines.append(
+                f"  {row['vehicle']}: state unknown since {row['last_campaign']}, not "
+                f"trusted ({basis}); recalibrate it as its reason says, e.g. susp-bo calibrate "
+                f"{Path(out) / row['last_campaign'] / 'study.toml'} --resume [--budget N], then "
+                "run this command again"
+            )
+        if row["no_domain"]:
+            lines.append(
+                f"  {row['vehicle']}: no acceptable domain for {', '.join(row['no_domain'])}: "
+                "no alarm is possible (give acceptable = [lo, hi] in the rig file)"
+            )
     for campaign in payload["campaigns"]:
         if not campaign["trusted"]:
             lines.append(f"  {campaign['id']}: not used for alarms — {campaign['why']}")

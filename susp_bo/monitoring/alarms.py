@@ -28,6 +28,9 @@ from typing import Any
 import numpy as np
 
 ALARM_THRESHOLD = 0.9
+BOTH_SIDES_SHARE = 0.25
+"""Direction ``both`` when the smaller side holds more than this share of P(outside): the
+posterior straddles the acceptable domain and which way the part left it is not known."""
 NO_VERDICT = "no reliability verdict: result from an older version"
 
 
@@ -82,7 +85,9 @@ class ParameterState:
         median: posterior median (physical unit).
         interval95: equal-tailed 95 % interval (2.5 %, 97.5 % quantiles).
         p_outside: posterior mass outside the acceptable domain (None: no domain).
-        direction: ``below`` / ``above``: the side holding most of that mass.
+        direction: ``below`` / ``above``: the side holding most of that mass; ``both``
+            when the smaller side holds more than :data:`BOTH_SIDES_SHARE` of it (a
+            posterior wider than the domain: the side cannot be told).
         alarm: the alarm state after this campaign (carried over when not trusted).
         used: whether this campaign could raise or clear the alarm (trusted, with a domain).
         truth: true value (synthetic data), else None.
@@ -126,7 +131,12 @@ def summarise_parameter(
         return median, (lo95, hi95), None, None
     below = float(np.mean(draws < acceptable[0]))
     above = float(np.mean(draws > acceptable[1]))
-    direction = None if below == above == 0.0 else ("below" if below >= above else "above")
+    if below == above == 0.0:
+        direction = None
+    elif min(below, above) > BOTH_SIDES_SHARE * (below + above):
+        direction = "both"  # a posterior wider than the domain: the side cannot be told
+    else:
+        direction = "below" if below >= above else "above"
     return median, (lo95, hi95), below + above, direction
 
 
@@ -210,7 +220,8 @@ def maintenance_table(
 
     Returns:
         One row per (vehicle, parameter) in alarm: ``vehicle``, ``parameter``,
-        ``part`` (the parameter's description), ``since_campaign``, ``since_date``,
+        ``part`` (the parameter's description), ``since_campaign``, ``since_date`` (the
+        first of the trusted campaigns in alarm on the same side up to the last one),
         ``probability`` (P(outside) of the last trusted campaign), ``direction``,
         ``last_trusted_campaign``, ``median`` there, and ``untrusted_since``: the
         campaigns after it that could not confirm or clear the alarm.
@@ -227,12 +238,13 @@ def maintenance_table(
                 continue
             trusted = [r for r in history if states[r.campaign_id][name].used]
             last = trusted[-1]
+            state = states[last.campaign_id][name]
             since = last
-            for record in reversed(trusted):
-                if not states[record.campaign_id][name].alarm:
+            for record in reversed(trusted):  # the run of alarms on the same side
+                earlier = states[record.campaign_id][name]
+                if not earlier.alarm or earlier.direction != state.direction:
                     break
                 since = record
-            state = states[last.campaign_id][name]
             rows.append(
                 {
                     "vehicle": vehicle,
@@ -249,4 +261,45 @@ def maintenance_table(
                     ],
                 }
             )
+    return rows
+
+
+def attention_table(
+    records: Sequence[CampaignRecord],
+    states: Mapping[str, Mapping[str, ParameterState]],
+) -> list[dict[str, Any]]:
+    """What the maintenance table cannot say: one row per vehicle whose state is not known.
+
+    A vehicle's last campaign not trusted: its alarms (or their absence) rest on an older
+    campaign (``last_campaign``, ``why``, ``last_trusted_campaign`` — None when no campaign
+    of the vehicle was trusted). A parameter without an acceptable domain never alarms:
+    listed once per vehicle under ``no_domain``.
+
+    Returns:
+        Rows ``vehicle``, ``last_campaign``, ``last_trusted``, ``why``,
+        ``last_trusted_campaign``, ``no_domain`` (parameter names), only for vehicles
+        with something to say.
+    """
+    by_vehicle: dict[str, list[CampaignRecord]] = {}
+    for record in sorted(records, key=lambda r: (r.vehicle, r.date)):
+        by_vehicle.setdefault(record.vehicle, []).append(record)
+    rows: list[dict[str, Any]] = []
+    for vehicle, history in by_vehicle.items():
+        last = history[-1]
+        trusted = [r for r in history if r.trusted]
+        no_domain = [
+            name for name, state in states[last.campaign_id].items() if state.p_outside is None
+        ]
+        if last.trusted and not no_domain:
+            continue
+        rows.append(
+            {
+                "vehicle": vehicle,
+                "last_campaign": last.campaign_id,
+                "last_trusted": last.trusted,
+                "why": None if last.trusted else last.why,
+                "last_trusted_campaign": trusted[-1].campaign_id if trusted else None,
+                "no_domain": no_domain,
+            }
+        )
     return rows

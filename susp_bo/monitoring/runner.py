@@ -55,6 +55,7 @@ from susp_bo.monitoring.alarms import (
     ALARM_THRESHOLD,
     CampaignRecord,
     apply_alarms,
+    attention_table,
     maintenance_table,
     summarise_parameter,
     trust,
@@ -200,6 +201,33 @@ def _say(progress: bool, text: str) -> None:
         print(f"susp-bo monitor: {text}", file=sys.stderr)
 
 
+def _refuse_orphaned_results(folder: Path, out: Path, expected: Sequence[Path]) -> None:
+    """Refuse a results folder holding finished campaigns that ``folder`` no longer has.
+
+    The maintenance table is rebuilt from the campaigns found: a campaign folder gone
+    missing (an unmounted disk, an archived folder) would silently drop its result, and
+    clear an alarm it raised.
+
+    Raises:
+        MonitorError: naming the results and what to do; nothing is changed.
+    """
+    known = {Path(p).resolve() for p in expected}
+    orphans = sorted(
+        path.parent
+        for path in out.glob(f"*/*/{RESULT_NAME}")
+        if path.is_file() and path.parent.resolve() not in known
+    )
+    if orphans:
+        listed = ", ".join(str(p.relative_to(out)) for p in orphans[:5])
+        more = f" and {len(orphans) - 5} more" if len(orphans) > 5 else ""
+        raise MonitorError(
+            f"{out} holds finished campaign results whose campaign folders are no longer in "
+            f"{folder}: {listed}{more}; the maintenance table would silently drop them (and "
+            "an alarm they raised). Restore those campaign folders, or move their results "
+            f"out of {out} if the campaigns were withdrawn (nothing was changed)"
+        )
+
+
 def monitor(
     folder: str | Path,
     out: str | Path,
@@ -267,6 +295,7 @@ def monitor(
     spec, names = _rig_and_names(base, folder, rig=rig, parameters=parameters)
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
+    _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
     for campaign in campaigns:  # every input checked before the first simulation
         try:
@@ -450,6 +479,7 @@ def build_report(
             "vehicles": sorted({c.vehicle for c in campaigns}),
             "campaigns": rows,
             "maintenance": maintenance_table(records, states, descriptions),
+            "attention": attention_table(records, states),
             "n_simulations": int(sum(r.get("n_simulations") or 0 for r in rows)),
             "version": __version__,
         }

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.stats import norm
@@ -10,6 +12,7 @@ from susp_bo.monitoring.alarms import (
     NO_VERDICT,
     CampaignRecord,
     apply_alarms,
+    attention_table,
     maintenance_table,
     p_outside,
     summarise_parameter,
@@ -127,3 +130,49 @@ def test_the_threshold_is_strict_and_alarms_clear_and_vehicles_are_independent()
     assert [(r["vehicle"], r["since_campaign"]) for r in table] == [("B", "B/2026-01-01")]
     with pytest.raises(ValueError, match="threshold"):
         apply_alarms(records, {"damper": (0.0, 1.0)}, threshold=1.0)
+
+
+def test_a_posterior_wider_than_the_domain_has_no_side() -> None:
+    # median at nominal, P(outside) 0.93 split evenly: "below" was reported
+    n = 40_000
+    draws = norm.ppf((np.arange(n) + 0.5) / n, 40.0e3, 1.0e3)
+    _, _, p_out, side = summarise_parameter("d", draws, (39.9e3, 40.1e3))
+    assert p_out == pytest.approx(0.92, abs=0.01) and side == "both"
+    lean = summarise_parameter("d", draws - 1000.0, (39.9e3, 40.1e3))  # 0.82 below, 0.14 above
+    assert lean[3] == "below"
+
+
+def _sided(day: int, p: float, side: str) -> CampaignRecord:
+    return CampaignRecord(
+        f"A/2026-01-{day:02d}", "A", f"2026-01-{day:02d}", True, "ok",
+        {"damper": (1.0, (0.5, 1.5), p, side)},
+    )  # fmt: skip
+
+
+def test_an_alarm_that_changes_side_starts_again() -> None:
+    records = [_sided(1, 0.95, "above"), _sided(2, 0.96, "below"), _sided(3, 0.97, "below")]
+    states = apply_alarms(records, {"damper": (0.0, 1.0)})
+    (row,) = maintenance_table(records, states)
+    assert row["direction"] == "below" and row["since_campaign"] == "A/2026-01-02"
+
+
+def test_attention_lists_vehicles_whose_state_the_table_cannot_give() -> None:
+    records = [
+        _record(1, 0.10, True),
+        _record(2, 1.00, False),  # the latest campaign of A: not trusted
+        _record(1, 0.05, True, vehicle="B"),
+        _record(1, 0.99, False, vehicle="C"),  # never trusted
+    ]
+    states = apply_alarms(records, {"damper": (0.0, 1.0)})
+    assert maintenance_table(records, states) == []  # "no alarm": but A and C are unknown
+    rows = {row["vehicle"]: row for row in attention_table(records, states)}
+    assert set(rows) == {"A", "C"}
+    assert rows["A"]["last_campaign"] == "A/2026-01-02" and not rows["A"]["last_trusted"]
+    assert rows["A"]["last_trusted_campaign"] == "A/2026-01-01"
+    assert rows["C"]["last_trusted_campaign"] is None and "budget_too_small" in rows["C"]["why"]
+    unbounded = [_record(1, 0.5, True)]
+    unbounded = [
+        dataclasses.replace(unbounded[0], summaries={"damper": (1.0, (0.5, 1.5), None, None)})
+    ]
+    (row,) = attention_table(unbounded, apply_alarms(unbounded, {"damper": None}))
+    assert row["last_trusted"] and row["no_domain"] == ["damper"]

@@ -236,3 +236,32 @@ def test_a_unit_changed_in_the_rig_does_not_relabel_finished_results(
     err = capsys.readouterr().err
     assert f"was calibrated with units {result['units']}" in err and "Traceback" not in err
     assert _files(copy["out"]) == before
+
+
+def test_a_campaign_folder_gone_missing_is_refused_not_dropped(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The maintenance table was rebuilt without it: an alarm it raised was cleared."""
+    copy["adder"](copy["folder"], copy["rig"], "TRAIN-1", "2026-03-10", seed=3)
+    shutil.rmtree(copy["folder"] / "TRAIN-1" / "2026-02-10")  # e.g. an archived campaign
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert "holds finished campaign results whose campaign folders are no longer in" in err
+    assert B in err and "Traceback" not in err
+    assert _files(copy["out"]) == before
+
+
+def test_the_table_says_when_a_vehicles_state_is_unknown(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The fixture's only campaign is not trusted (8 evaluations): "no alarm" alone hid it."""
+    assert _monitor(copy) == 0
+    err = capsys.readouterr().err
+    assert "maintenance: no alarm" in err
+    study = copy["out"] / B / "study.toml"
+    assert f"TRAIN-1: state unknown since {B}, not trusted" in err
+    assert f"susp-bo calibrate {study} --resume" in err
+    monitor = json.loads((copy["out"] / "monitor.json").read_text())
+    (row,) = monitor["attention"]
+    assert row["last_campaign"] == B and row["last_trusted_campaign"] is None
