@@ -83,9 +83,14 @@ def run_monitor(args: argparse.Namespace) -> int:
 
     parameters = None
     if args.parameters is not None:
-        parameters = [p.strip() for p in args.parameters.split(",") if p.strip()]
-        if not parameters:
+        parameters = [p.strip() for p in args.parameters.split(",")]
+        if not any(parameters):
             raise UsageError(f"--parameters: {args.parameters!r} names no parameter")
+        if not all(parameters):  # "a,,b": a name left out by mistake, not dropped silently
+            raise UsageError(
+                f"--parameters: {args.parameters!r} has an empty name; expected names "
+                "separated by single commas, e.g. 'secondary_vertical_damping,yaw_damper_damping'"
+            )
     try:
         payload = monitor(
             args.folder,

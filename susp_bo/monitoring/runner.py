@@ -67,12 +67,14 @@ from susp_bo.monitoring.campaign_results import (
 )
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
 from susp_bo.monitoring.warm_start import plan_warm_start
+from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import load_rig_spec
 from susp_bo.study_config import (
     ExecutorConfig,
     StudyConfig,
     parse_study_config,
 )
+from susp_bo.study_sections import SECTIONS
 
 MONITOR_CONFIG_NAME = "monitor.toml"
 MONITOR_NAME = "monitor.json"
@@ -121,6 +123,13 @@ def base_config(
                 raise MonitorError(
                     f"{path}: {key}: not allowed here; campaigns are discovered in the "
                     "monitoring folder and results go to --out"
+                )
+        allowed = ("rig", "parameters", *SECTIONS)  # a study file's keys but data and out
+        for key in mapping:
+            if key not in allowed:
+                raise MonitorError(
+                    f"{path}: {key}: unknown key{did_you_mean(key, allowed)}; allowed keys: "
+                    f"{', '.join(allowed)}"
                 )
     mapping.setdefault("rig", "hst_trailer")
     paths = {"data": ".", "out": str(out)}

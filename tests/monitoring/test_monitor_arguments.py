@@ -52,6 +52,11 @@ def _refused(folder: Path, out: Path, capsys: pytest.CaptureFixture[str], *flags
             ["--parameters", "nonexistent"],
             "susp-bo monitor: --parameters: ['nonexistent'] not in the calibration set",
         ),
+        (  # the empty name was dropped: a parameter left out by mistake went unnoticed
+            ["--parameters", "yaw_damper_damping,,secondary_vertical_damping"],
+            "susp-bo monitor: --parameters: 'yaw_damper_damping,,secondary_vertical_damping' "
+            "has an empty name",
+        ),
     ],
 )
 def test_a_bad_flag_is_named_not_the_file(
@@ -74,6 +79,17 @@ def test_a_bad_value_of_monitor_toml_is_blamed_on_the_file(
     config.write_text(text.replace('"yaw_damper_damping"', '"secondary_vertical_damping"'))
     err = _refused(tmp_path / "campaigns", tmp_path / "out", capsys)
     assert f"{config}: parameters: " in err and "--parameters" not in err
+
+
+def test_an_unknown_key_of_monitor_toml_lists_only_the_keys_it_allows(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    shutil.copytree(folder, tmp_path / "campaigns")
+    config = tmp_path / "campaigns" / "monitor.toml"
+    config.write_text('rigg = "hst_trailer"\n' + config.read_text())
+    err = _refused(tmp_path / "campaigns", tmp_path / "out", capsys)
+    assert f"{config}: rigg: unknown key (did you mean 'rig'?); allowed keys: rig, " in err
+    assert "data" not in err.split("allowed keys:")[1]  # data and out are refused there
 
 
 def test_a_rig_path_on_the_command_line_is_relative_to_the_current_folder(
