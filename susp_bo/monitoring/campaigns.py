@@ -109,6 +109,11 @@ def parse_date(value: object, where: str) -> dt.date:
     raise CampaignError(f"{where}: date {value!r} is not a date; expected YYYY-MM-DD")
 
 
+def _shown(value: object) -> str:
+    """A value as a user wrote it: a date as YYYY-MM-DD (not ``datetime.date(…)``)."""
+    return value.isoformat() if isinstance(value, dt.date) else repr(value)
+
+
 def _manifest(folder: Path) -> dict[str, Any] | None:
     path = folder / MANIFEST_NAME
     if not path.is_file():
@@ -302,8 +307,8 @@ def read_campaign(folder: str | Path) -> Campaign:
                 same = ours is None or str(ours) == str(value)
             if not same:
                 raise CampaignError(
-                    f"{folder / MANIFEST_NAME}: {key} = {value!r} contradicts the runs' "
-                    f"metadata ({key} = {ours!r})"
+                    f"{folder / MANIFEST_NAME}: {key} = {_shown(value)} contradicts the runs' "
+                    f"metadata ({key} = {_shown(ours)})"
                 )
             values[key] = value
     hint = (
