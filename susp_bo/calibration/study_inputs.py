@@ -115,21 +115,29 @@ def sensor_noise(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> float:
     return recorded.pop()
 
 
-def import_hint(folder: Path) -> str:
-    """A hint when ``folder`` holds CSV or MATLAB files instead of HDF5 runs, else ``""``."""
+def import_hint(folder: Path, name: str = "it", out: Path | None = None) -> str:
+    """A hint when ``folder`` holds CSV or MATLAB files instead of HDF5 runs, else ``""``.
+
+    Args:
+        folder: the folder looked in.
+        name: how the sentence names the folder (``"; it holds 2 .csv files: …"``).
+        out: where the hint imports to (default ``<folder>_h5``; a monitoring campaign's
+            runs go into its own folder, next to its ``campaign.toml``).
+    """
     if not folder.is_dir():
         return ""
     found = {
-        kind: sum(1 for p in folder.iterdir() if p.suffix.lower() == f".{kind}")
+        kind: sum(1 for p in folder.iterdir() if p.is_file() and p.suffix.lower() == f".{kind}")
         for kind in ("csv", "mat")
     }
     kinds = [kind for kind, count in found.items() if count]
     if not kinds:
         return ""
     listed = " and ".join(f"{found[kind]} .{kind} files" for kind in kinds)
+    target = Path(f"{folder}_h5") if out is None else out
     return (
-        f"; it holds {listed}: convert them to the HDF5 measured-run format first, e.g. "
-        f"susp-bo import {kinds[0]} {folder} --out {folder}_h5 --rig RIG"
+        f"; {name} holds {listed}: convert them to the HDF5 measured-run format first, e.g. "
+        f"susp-bo import {kinds[0]} {folder} --out {target} --rig RIG"
     )
 
 

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from susp_bo.calibration.study_inputs import import_hint
 from susp_bo.data.measured import RUN_SUFFIXES, MeasuredDataError, load_run, run_paths
 
 MANIFEST_NAME = "campaign.toml"
@@ -131,24 +132,9 @@ def _manifest(folder: Path) -> dict[str, Any] | None:
 
 
 def _import_hint(folder: Path, name: str = "it") -> str:
-    """A hint when ``folder`` holds CSV or MATLAB files (runs not yet imported), else ``""``.
-
-    Worded as ``susp-bo calibrate``'s hint (``"; it holds 2 .csv files: convert them …"``,
-    ``name`` in place of "it"), but the runs go into the campaign folder itself (next to its
-    ``campaign.toml``), not into a new folder.
-    """
-    found = {
-        suffix[1:]: sum(1 for p in folder.iterdir() if p.is_file() and p.suffix.lower() == suffix)
-        for suffix in _IMPORTED
-    }
-    kinds = [kind for kind, count in found.items() if count]
-    if not kinds:
-        return ""
-    listed = " and ".join(f"{found[kind]} .{kind} files" for kind in kinds)
-    return (
-        f"; {name} holds {listed}: convert them to the HDF5 measured-run format first, e.g. "
-        f"susp-bo import {kinds[0]} {folder} --out {folder} --rig RIG"
-    )
+    """``susp-bo calibrate``'s import hint, importing into the campaign folder itself (the
+    runs go next to its ``campaign.toml``), else ``""``."""
+    return import_hint(folder, name, out=folder)
 
 
 def _check_manifest_folders(root: Path, run_folders: list[Path]) -> None:
