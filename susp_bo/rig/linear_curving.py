@@ -20,6 +20,7 @@ deflection — use the PyBullet rig (:class:`~susp_bo.rig.simulator.Rig`) there.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -377,6 +378,11 @@ class CurvedLineMethods:
             ``dead_bands`` (m_dead,) deflections in m, by name.
         """
         speed = self.spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
+        if not (math.isfinite(speed) and speed >= 0.0):  # NaN/inf ended in a Newton failure
+            raise ValueError(
+                f"speed_m_s: got {speed_m_s!r}; expected a finite speed >= 0 m/s (0: standing "
+                "in the curve)"
+            )
         spec = self.spec.with_parameters(parameters)
         return steady_curving_state(
             build_assembly(spec), spec.sensors, radius_m, cant_m, speed, direction

@@ -303,3 +303,10 @@ def test_linear_response_to_the_design_matches_pybullet(short_spec: RigSpec) -> 
         if channel.startswith("carbody"):  # roll-out and transition transients, ≈ 0.1 m/s²
             peak = np.max(np.abs(remaining[c]))
             assert np.max(np.abs(linear[c] - remaining[c])) < 0.05 * peak, channel
+
+
+@pytest.mark.parametrize("speed", [math.nan, math.inf, -5.0])
+def test_a_speed_that_is_not_one_is_refused(reference_spec: RigSpec, speed: float) -> None:
+    # NaN/inf ended in "Newton did not converge", -5 m/s was taken as 5
+    with pytest.raises(ValueError, match=r"speed_m_s: got .*; expected a finite speed >= 0"):
+        LinearisedRig(reference_spec).steady_curving(4000.0, 0.1, speed_m_s=speed)
