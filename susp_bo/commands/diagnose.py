@@ -67,6 +67,8 @@ from susp_bo.commands._common import output_folder
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.output_folder import CONFIG_NAME, RESULT_NAME
 
+DOCUMENT_NAME = "discrepancy.json"
+
 
 def _result_vector(payload: dict[str, Any], key: str, study: Any, result_file: Path) -> Any:
     """``payload[key]`` as (q,) float64: q finite numbers, inside C_w for the joint MAP,
@@ -312,6 +314,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator, make_simulator
     from susp_bo.discrepancy.verdict import calibration_reliability
     from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
+    from susp_bo.monitoring.campaign_results import CampaignResultError, check_campaign_store
     from susp_bo.study_config import load_study_config
 
     kind = getattr(args, "simulator", None) or "pybullet"
@@ -319,6 +322,12 @@ def run_diagnose(args: argparse.Namespace) -> int:
     force = bool(getattr(args, "force", False))
     if budget is not None and budget < 2:
         raise UsageError(f"--budget: got {budget}; expected an integer >= 2 evaluations")
+    if args.out and (Path(args.out) / DOCUMENT_NAME).exists():
+        # the recalibration's store and result would be replaced: never silently
+        raise UsageError(
+            f"--out: {args.out} already holds a diagnosis ({DOCUMENT_NAME}); give another "
+            "--out, or move that folder away to diagnose again (nothing was changed)"
+        )
     try:
         payload = json.loads(result_file.read_text())
     except (ValueError, OSError) as error:
@@ -336,7 +345,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
     if not reliability.fit_finished and not force:
         out = output_folder(args.out)
         document = _not_trusted_document(reliability, result_dir, payload, payload.get("rig"))
-        write_json(out / "discrepancy.json", json_ready(document))
+        write_json(out / DOCUMENT_NAME, json_ready(document))
         print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
         return 0
     try:
@@ -344,6 +353,23 @@ def run_diagnose(args: argparse.Namespace) -> int:
         simulator = make_simulator(kind)
     except (StudyError, ValueError, OSError) as error:
         raise UsageError(str(error)) from error
+    curved = [
+        t.track_id for t in study.tracks if t.design is not None and not t.design.is_tangent()
+    ]
+    if curved:  # the ranking refits run on the linearised rig, which is for tangent track
+        raise UsageError(
+            f"RESULT_DIR: the runs follow a track design with curves, cant or gradient "
+            f"(tracks {', '.join(map(str, curved[:3]))}{' …' if len(curved) > 3 else ''}); "
+            "diagnose ranks the library's effects on the linearised rig, which is for "
+            "tangent track only: diagnose tangent-track runs (nothing was computed)"
+        )
+    try:  # the calibration must be of the data now in its folder (as calibrate --resume)
+        check_campaign_store(study, finished=True, campaign_folder=study.config.data)
+    except CampaignResultError as error:
+        raise UsageError(
+            f"RESULT_DIR: {error}. diagnose reads a calibration only against the data it "
+            "was computed on: a disagreement with other data is not a model discrepancy"
+        ) from None
     base_fit = _fit_from_result(study, payload, result_file)  # checked before --out is made
     out = output_folder(args.out)
     metadata = study.runs[0].metadata or {}
@@ -403,7 +429,20 @@ def run_diagnose(args: argparse.Namespace) -> int:
             f"would say on this unfinished fit is under forced_diagnosis ({forced['verdict']}: "
             f"{len(forced['flagged'])} residual bands), not a model-discrepancy finding.",
         )
-    write_json(out / "discrepancy.json", json_ready(document))
+    augmented_verdict = verdicts[-1] if verdicts else None
+    if (
+        report.verdict == "named"
+        and report.answer_model == "augmented"
+        and isinstance(augmented_verdict, dict)
+        and augmented_verdict.get("verdict") != "trusted"
+        and reliability.fit_finished
+    ):  # the effect is named; the recalibrated values are not an answer
+        codes = ", ".join(str(r.get("code")) for r in augmented_verdict.get("reasons", []))
+        document["sentence"] += (
+            f" The augmented model's calibration is NOT trusted ({codes or 'no verdict'}): "
+            "its parameter values are not an answer; diagnose again with a larger --budget."
+        )
+    write_json(out / DOCUMENT_NAME, json_ready(document))
     write_figures(report, out)
     print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
     g0, g1 = report.gap_before, report.gap_after

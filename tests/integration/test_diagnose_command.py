@@ -14,10 +14,12 @@ each on the calibration's **real** reliability verdict.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -26,6 +28,7 @@ import tomli_w
 from susp_bo.data.measured import load_run, save_run
 from susp_bo.discrepancy.out_of_library import get_modification
 from susp_bo.discrepancy.verdict import VERDICTS
+from susp_bo.rig.line_file import design_from_segments
 
 FIELDS = ("verdict", "flagged", "ranking", "named_effect", "gap_before", "gap_after")
 TRUTH = {"secondary_vertical_damping": 30.0e3}
@@ -225,6 +228,15 @@ def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
     lo, hi = recalibrated["interval95"][names.index("secondary_vertical_damping")]
     assert lo <= TRUTH["secondary_vertical_damping"] <= hi
     assert "named: carbody_bending" in done.stderr
+    assert "NOT trusted" not in report["sentence"]
+    # a recalibration too small to be trusted: the effect is named, its values are no answer
+    small = _diagnose(result, tmp_path / "small", "--budget", "4")
+    assert small.returncode == 0, small.stderr[-3000:]
+    report = json.loads((tmp_path / "small" / "discrepancy.json").read_text())
+    assert report["verdict"] == "named" and report["answer_model"] == "augmented"
+    assert report["augmented_reliability"]["verdict"] == "not_trusted"
+    assert "The augmented model's calibration is NOT trusted (" in report["sentence"]
+    assert "NOT trusted" in small.stderr
 
 
 # ---------------------------------------------------------------- unexplained_disagreement
@@ -265,3 +277,60 @@ def test_a_mis_mounted_sensor_changes_only_its_channel(fast_data: Path, tmp_path
         same = (again.accelerations_m_s2[c] == run.accelerations_m_s2[c]).all()
         assert same == (c != index)
     assert again.metadata["out_of_library"] == "sensor_rolled"
+
+
+# ---------------------------------------------------------------- refused before any work
+
+
+def _own_data(result: Path, tmp_path: Path) -> Path:
+    """The study of ``result`` pointed at a private copy of its data folder; the copy."""
+    study = result / "study.toml"
+    config = tomllib.loads(study.read_text())
+    data = tmp_path / "data"
+    shutil.copytree(config["data"], data)
+    study.write_text(tomli_w.dumps({**config, "data": str(data)}))
+    return data
+
+
+def test_a_calibration_of_other_data_is_not_diagnosed(uninterrupted: Path, tmp_path: Path):
+    """Runs replaced since the calibration: the disagreement with them was diagnosed as a
+    model discrepancy ("look for physics outside the library") instead of refused."""
+    result = _copy(uninterrupted, tmp_path)
+    data = _own_data(result, tmp_path)
+    first = sorted(data.glob("*.h5"))[0]
+    run = load_run(first)
+    save_run(dataclasses.replace(run, accelerations_m_s2=1.5 * run.accelerations_m_s2), first)
+    done = _diagnose(result, tmp_path / "diagnosis", "--force", "--simulator", "linear")
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert "was computed on other measured runs" in done.stderr
+    assert "not a model discrepancy" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "diagnosis").exists()
+
+
+def test_runs_on_a_curved_line_are_refused_not_a_traceback(uninterrupted: Path, tmp_path: Path):
+    """The ranking's linearised rig raised LinearModelNotApplicable (exit 1) after the
+    PyBullet checks, leaving an empty --out."""
+    result = _copy(uninterrupted, tmp_path)
+    data = _own_data(result, tmp_path)
+    for path in sorted(data.glob("*.h5")):
+        run = load_run(path)
+        curve = design_from_segments(
+            [{"type": "curve", "length_m": run.geometry.length_m + 1.0, "radius_m": 7000.0,
+              "cant_mm": 150.0, "direction": "left"}]
+        )  # fmt: skip
+        save_run(dataclasses.replace(run, design=curve), path)
+    done = _diagnose(result, tmp_path / "diagnosis", "--force")
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert "the runs follow a track design with curves" in done.stderr
+    assert "Traceback" not in done.stderr and not (tmp_path / "diagnosis").exists()
+
+
+def test_a_second_diagnosis_into_the_same_folder_is_refused(uninterrupted: Path, tmp_path: Path):
+    """It replaced the first one's recalibration store and result without a word."""
+    result = _copy(uninterrupted, tmp_path)
+    out = tmp_path / "diagnosis"
+    assert _diagnose(result, out).returncode == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    done = _diagnose(result, out)
+    assert done.returncode == 2 and "already holds a diagnosis (discrepancy.json)" in done.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
