@@ -24,7 +24,10 @@ Naming rule (a candidate is named only when *all* hold, else unexplained):
 4. it leaves no comparable disagreement: after the refit at most
    ``max_remaining_share`` of the previously flagged share of bins is flagged, and
    no remaining band is stronger (mean |Z| × bins) than ``max_remaining_band`` of
-   the strongest band before.
+   the strongest band before;
+5. it creates no disagreement: the refit flags no band in a channel where no bin
+   was flagged before (an effect that puts energy where the data have none is not
+   the data's pattern, e.g. a sensor on a bracket taken for a carbody mode).
 
 Accept rule of an augmented model (:func:`accept_augmented`): it is the answer only
 if its posterior predictive log density over *all* bins is higher than the base
@@ -209,6 +212,19 @@ def check_naming(
             "message": f"after the refit {share_after:.1%} of the bins are still flagged "
             f"({share_before:.1%} before; strongest band {band_after:.3g} vs {band_before:.3g}): "
             "comparable disagreement remains",
+        })  # fmt: skip
+    clean = ~np.any(mask, axis=1) & ~np.any(np.asarray(base_check.flagged, dtype=bool), axis=1)
+    created = [
+        band
+        for band in augmented_check.bands
+        if clean[augmented_check.channels.index(band.channel)]
+    ]
+    if created:  # the effect puts energy where the data have none: not the data's pattern
+        where = "; ".join(describe_band(band) for band in created[:2])
+        reasons.append({
+            "code": "new_disagreement",
+            "message": f"the refit creates disagreement in {len(created)} band(s) of channels "
+            f"that agreed before ({where}): the effect predicts energy the data do not have",
         })  # fmt: skip
     return NamingCheck(
         effect=effect,

@@ -77,6 +77,7 @@ def test_each_failed_condition_gives_its_reason() -> None:
         "effect_parameter_at_bound",
         "weak_signature",
         "disagreement_left",
+        "new_disagreement",  # the vertical channel agreed before
     }
     assert result.at_bound == ("effect_k",) and not result.passes
     # the base parameter "a" at a bound would not count: only the effect's parameters
@@ -91,7 +92,31 @@ def test_a_pattern_moved_elsewhere_is_disagreement_left_even_when_explained() ->
         np.array([[0.0], [1.0]]), before.flagged, before, moved, NamingRule(),
     )  # fmt: skip
     assert result.explained_share > 0.9
-    assert [r["code"] for r in result.reasons] == ["disagreement_left"]
+    assert [r["code"] for r in result.reasons] == ["disagreement_left", "new_disagreement"]
+
+
+def test_a_refit_that_creates_disagreement_in_a_clean_channel_is_not_named() -> None:
+    # a sensor on a bracket was named carbody bending: the refit removed the flagged band
+    # and put energy into another channel, where the data have none
+    before = _check(_pattern(1.0))
+    one_bin = np.zeros((2, 20))
+    one_bin[0, 3] = 0.5  # one bin, half the strength: not "comparable disagreement left"
+    created = _check(one_bin, seed=1)
+    assert created.bands and all(b.channel == CHANNELS[0] for b in created.bands)
+    result = check_naming(
+        "effect", 80.0, ["effect_k"], ["effect_k"], np.array([0.5]),
+        np.array([[0.0], [1.0]]), before.flagged, before, created, NamingRule(),
+    )  # fmt: skip
+    assert [r["code"] for r in result.reasons] == ["new_disagreement"], result.reasons
+    assert "carbody mid-car vertical" in result.reasons[0]["message"]
+    # the same band in a channel that was already flagged before is not new
+    flagged = before.flagged.copy()
+    flagged[0, 2:6] = True
+    same = check_naming(
+        "effect", 80.0, ["effect_k"], ["effect_k"], np.array([0.5]),
+        np.array([[0.0], [1.0]]), flagged, before, created, NamingRule(),
+    )  # fmt: skip
+    assert "new_disagreement" not in {r["code"] for r in same.reasons}
 
 
 def test_accept_rule_needs_both_density_and_flagged_share() -> None:
