@@ -428,7 +428,12 @@ def not_trusted_sentence(
 ) -> str:
     """The answer when the calibration is not trusted: why, and what to do."""
     why = "; ".join(str(r.get("message", r.get("code", ""))) for r in reliability.reasons)
-    budget = f" --budget {2 * n_evaluations}" if n_evaluations else " --budget N (larger)"
+    minimum = max(
+        (int(r["minimum"]) for r in reliability.reasons if isinstance(r.get("minimum"), int)),
+        default=0,
+    )  # budget_too_small names the minimum: advice below it would be refused in turn
+    larger = max(2 * n_evaluations if n_evaluations else 0, minimum)
+    budget = f" --budget {larger}" if larger else " --budget N (larger)"
     if reliability.reasons and reliability.reasons[0].get("code") == "failed_region":
         return (  # more budget is not the remedy where the simulator fails
             f"calibration_not_trusted: the calibration in {result_dir} is not trusted ({why}). "

@@ -146,6 +146,14 @@ def test_reliability_gate_follows_the_shared_contract() -> None:
     sentence = not_trusted_sentence(untrusted, "res", 40)
     assert "40 evaluations for q = 7" in sentence
     assert "--resume --budget 80" in sentence and "res/study.toml" in sentence
+    # twice the evaluations done can still be below the minimum the calibration names
+    small = {"code": "budget_too_small", "message": "12 evaluations", "minimum": 32}
+    sentence = not_trusted_sentence(
+        calibration_reliability({"reliability": {"verdict": "not_trusted", "reasons": [small]}}),
+        "res",
+        12,
+    )
+    assert "--resume --budget 32 " in sentence  # not 24, refused in turn
     # where simulations failed, more budget is not the remedy
     failed = {"code": "failed_region", "message": "2 of the 8 held-out check simulations failed"}
     sentence = not_trusted_sentence(
