@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo.discrepancy.detection import Detection, gap_metrics, predictive_check
-from susp_bo.discrepancy.effects import get_effect
+from susp_bo.discrepancy.effects import EFFECTS, get_effect
 from susp_bo.discrepancy.fitting import Fit, fit_model
 from susp_bo.discrepancy.problem import DiagnosisProblem, Simulator
 from susp_bo.discrepancy.ranking import RankedEffect, rank_effects
@@ -67,9 +67,23 @@ class WorkflowSettings:
     def __post_init__(self) -> None:
         if not 0.0 < self.q < 1.0:
             raise ValueError(f"WorkflowSettings.q: got {self.q}; allowed range (0, 1)")
-        if int(self.n_draws) != self.n_draws or self.n_draws < 2:
+        for name, minimum in (("n_draws", 2), ("seed", 0)):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, numbers.Integral)
+                or value < minimum
+            ):
+                raise ValueError(
+                    f"WorkflowSettings.{name}: got {value!r}; must be an integer >= {minimum}"
+                )
+        if not isinstance(self.polish_base, bool):
             raise ValueError(
-                f"WorkflowSettings.n_draws: got {self.n_draws}; must be an integer >= 2"
+                f"WorkflowSettings.polish_base: got {self.polish_base!r}; expected True or False"
+            )
+        if not isinstance(self.rule, NamingRule):
+            raise ValueError(
+                f"WorkflowSettings.rule: got {type(self.rule).__name__}; expected a NamingRule"
             )
         if (
             isinstance(self.max_iterations, bool)
@@ -88,6 +102,15 @@ class WorkflowSettings:
                 "sequence of effect names, or None for the whole library (with no effect "
                 "tried, no disagreement could be called unexplained)"
             )
+        if self.candidates is not None:
+            unknown = [c for c in self.candidates if c not in EFFECTS]
+            twice = sorted({c for c in self.candidates if list(self.candidates).count(c) > 1})
+            if unknown or twice:  # checked here: on clean data the candidates are never read
+                raise ValueError(
+                    f"WorkflowSettings.candidates: {unknown or twice} "
+                    f"{'unknown' if unknown else 'given more than once'}; allowed: distinct "
+                    f"names of {', '.join(EFFECTS)}"
+                )
 
 
 def check(

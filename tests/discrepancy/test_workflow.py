@@ -171,6 +171,14 @@ def test_a_recalibration_that_ends_worse_is_not_accepted(base_spec, linear_simul
         ({"max_iterations": True}, "max_iterations: got True"),
         ({"candidates": ()}, r"candidates: got \(\); expected a non-empty"),
         ({"candidates": "carbody_bending"}, "candidates: got 'carbody_bending'"),
+        # each of these failed only after the base fit and the check, or not at all
+        ({"candidates": ("nosuch",)}, r"candidates: \['nosuch'\] unknown; allowed: distinct"),
+        ({"candidates": ("carbody_bending",) * 2}, r"\['carbody_bending'\] given more than"),
+        ({"seed": -1}, "seed: got -1; must be an integer >= 0"),
+        ({"seed": 1.5}, "seed: got 1.5"),
+        ({"n_draws": float("inf")}, "n_draws: got inf; must be an integer >= 2"),
+        ({"polish_base": "no"}, "polish_base: got 'no'; expected True or False"),
+        ({"rule": {"min_score": 3}}, "rule: got dict; expected a NamingRule"),
     ],
 )
 def test_workflow_settings_refuse_what_would_hang_or_claim_too_much(
