@@ -16,6 +16,7 @@ physics.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -138,11 +139,24 @@ class DiagnosisProblem:
             raise ValueError(
                 f"measured: {measured.shape[1]} channels, the rig has {len(self.spec.channels)}"
             )
+        bins = len(self.spec.spectrum.band_edges_hz()) - 1
+        if measured.shape[2] != bins:  # else a broadcasting error deep in the first check
+            raise ValueError(
+                f"measured: {measured.shape[2]} frequencies, the rig's spectrum has {bins} bands"
+            )
+        if not np.all(np.isfinite(measured)):
+            raise ValueError("measured: non-finite log-amplitudes; expected finite spectra")
         bounds = np.asarray(self.bounds, dtype=np.float64)
         if bounds.shape != (2, len(self.names)):
             raise ValueError(f"bounds: shape {bounds.shape}; expected (2 x {len(self.names)})")
-        if self.noise_m_s2 < 0:
-            raise ValueError(f"noise_m_s2: got {self.noise_m_s2}; must be >= 0 m/s²")
+        inverted = [n for n, lo, hi in zip(self.names, *bounds, strict=True) if not lo < hi]
+        if inverted:  # also NaN
+            raise ValueError(
+                f"bounds: lower >= upper (or NaN) for {', '.join(map(str, inverted))}; expected "
+                "rows (lower, upper) with lower < upper"
+            )
+        if not (math.isfinite(self.noise_m_s2) and self.noise_m_s2 >= 0):
+            raise ValueError(f"noise_m_s2: got {self.noise_m_s2}; must be a finite value >= 0 m/s²")
         object.__setattr__(self, "measured", measured)
         object.__setattr__(self, "bounds", bounds)
         object.__setattr__(self, "names", tuple(self.names))

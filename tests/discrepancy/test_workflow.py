@@ -188,3 +188,20 @@ def test_workflow_settings_refuse_what_would_hang_or_claim_too_much(
     candidate at all made any disagreement "unexplained"."""
     with pytest.raises(ValueError, match=match):
         WorkflowSettings(**changes)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda p: {"bounds": p.bounds[::-1]}, "bounds: lower >= upper"),
+        (lambda p: {"measured": p.measured[:, :, :-1]}, "frequencies, the rig's spectrum has"),
+        (lambda p: {"measured": p.measured * np.nan}, "measured: non-finite"),
+        (lambda p: {"noise_m_s2": float("nan")}, "noise_m_s2: got nan"),
+    ],
+)
+def test_a_diagnosis_problem_refuses_what_it_cannot_diagnose(base_spec, change, match: str) -> None:
+    """Inverted bounds were echoed in a "named" answer; a frequency count off by one failed
+    as a broadcasting error inside the first check."""
+    problem = synthesize_problem(base_spec, None, nu=2, seed=1, noise_m_s2=0.01)
+    with pytest.raises(ValueError, match=match):
+        dataclasses.replace(problem, **change(problem))
