@@ -47,6 +47,14 @@ bump stop, refused; the air-spring reservoir was never the best candidate); null
 with a flag or a name. 99 s wall: 16 cases, 6.2 s per case, 0.162 cases per second
 (a consistent null case stops after the check, an out-of-library one after the ranking).
 
+Session 22 (27 Nov 2026, after naming rule 5 ``new_disagreement`` — no band created in a
+channel that agreed before — and the linear simulator's steady-speed limit),
+``--quick --parts names outside null``: 10/10 named and accepted, out of library 0/10
+named and 10/10 flagged, null 0/6 with a flag or a name; 249 s wall, 26 cases, 0.105
+cases per second (machine shared with a demo run). The probe case the rule was made for
+(a mid-car vertical accelerometer on an 11 Hz, 6 % damped bracket, ν = 3, noise 0.02,
+seeds 2–4; named ``carbody_bending`` before) is ``unexplained_disagreement`` on 3/3.
+
 Speed, fast path vs command line (same machine, same session, load 2–7): the fast path
 does 0.065 cases/s on named cases (one case = synthesis + base refit + check + ranking
 of 5 candidates + augmented refit, linearised rig). The command-line chain does one case

@@ -311,7 +311,12 @@ def run_diagnose(args: argparse.Namespace) -> int:
     from susp_bo.calibration.study_inputs import StudyError
     from susp_bo.calibration.study_preparation import prepare_study
     from susp_bo.discrepancy.figures import write_figures
-    from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator, make_simulator
+    from susp_bo.discrepancy.problem import (
+        DiagnosisProblem,
+        LinearSimulator,
+        linear_model_problem,
+        make_simulator,
+    )
     from susp_bo.discrepancy.verdict import calibration_reliability
     from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
     from susp_bo.monitoring.campaign_results import CampaignResultError, check_campaign_store
@@ -353,15 +358,13 @@ def run_diagnose(args: argparse.Namespace) -> int:
         simulator = make_simulator(kind)
     except (StudyError, ValueError, OSError) as error:
         raise UsageError(str(error)) from error
-    curved = [
-        t.track_id for t in study.tracks if t.design is not None and not t.design.is_tangent()
-    ]
-    if curved:  # the ranking refits run on the linearised rig, which is for tangent track
+    problems = [p for p in (linear_model_problem(t) for t in study.tracks) if p]
+    if problems:  # the ranking refits run on the linearised rig: tangent track, one speed
         raise UsageError(
-            f"RESULT_DIR: the runs follow a track design with curves, cant or gradient "
-            f"(tracks {', '.join(map(str, curved[:3]))}{' …' if len(curved) > 3 else ''}); "
-            "diagnose ranks the library's effects on the linearised rig, which is for "
-            "tangent track only: diagnose tangent-track runs (nothing was computed)"
+            f"RESULT_DIR: {problems[0]}"
+            + (f" (and {len(problems) - 1} more runs)" if len(problems) > 1 else "")
+            + "; diagnose ranks the library's effects on the linearised rig, so it diagnoses "
+            "runs on tangent track at a steady speed only (nothing was computed)"
         )
     try:  # the calibration must be of the data now in its folder (as calibrate --resume)
         check_campaign_store(study, finished=True, campaign_folder=study.config.data)

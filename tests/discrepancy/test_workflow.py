@@ -17,6 +17,8 @@ import pytest
 from susp_bo.discrepancy.figures import before_after_figure
 from susp_bo.discrepancy.scenarios import synthesize_problem
 from susp_bo.discrepancy.workflow import WorkflowSettings, run_workflow
+from susp_bo.rig.linear_curving import LinearModelNotApplicable
+from susp_bo.rig.track import SpeedProfile
 
 SLOW, FAST = 55.56, 83.33
 CASES = [
@@ -205,3 +207,18 @@ def test_a_diagnosis_problem_refuses_what_it_cannot_diagnose(base_spec, change, 
     problem = synthesize_problem(base_spec, None, nu=2, seed=1, noise_m_s2=0.01)
     with pytest.raises(ValueError, match=match):
         dataclasses.replace(problem, **change(problem))
+
+
+def test_the_linear_simulator_refuses_a_run_whose_speed_varies(base_spec, linear_simulator):
+    """It ran at the mean speed: a 70 → 95 m/s sweep on PyBullet data (linear elements,
+    nothing missing) came out as disagreement with physics hints."""
+    problem = synthesize_problem(base_spec, None, nu=2, seed=1, noise_m_s2=0.01)
+    track = problem.tracks[0]
+    duration = track.speed.duration_s
+    sweep = SpeedProfile(np.array([0.0, duration]), np.array([70.0, 95.0]))
+    names = dict(base_spec.parameter_values())
+    with pytest.raises(LinearModelNotApplicable, match=r"the speed varies by 30% of its mean"):
+        linear_simulator.spectra(base_spec, names, dataclasses.replace(track, speed=sweep))
+    steady = SpeedProfile(np.array([0.0, duration]), np.array([80.0, 82.0]))  # 2.5 %: allowed
+    spectra = linear_simulator.spectra(base_spec, names, dataclasses.replace(track, speed=steady))
+    assert np.all(np.isfinite(spectra))

@@ -321,7 +321,8 @@ def test_runs_on_a_curved_line_are_refused_not_a_traceback(uninterrupted: Path, 
         save_run(dataclasses.replace(run, design=curve), path)
     done = _diagnose(result, tmp_path / "diagnosis", "--force")
     assert done.returncode == 2, done.stderr[-3000:]
-    assert "the runs follow a track design with curves" in done.stderr
+    assert "follows a track design with curves, cant or gradient" in done.stderr
+    assert "at a steady speed only (nothing was computed)" in done.stderr
     assert "Traceback" not in done.stderr and not (tmp_path / "diagnosis").exists()
 
 
