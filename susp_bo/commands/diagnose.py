@@ -446,7 +446,12 @@ def run_diagnose(args: argparse.Namespace) -> int:
             "its parameter values are not an answer; diagnose again with a larger --budget."
         )
     write_json(out / DOCUMENT_NAME, json_ready(document))
-    write_figures(report, out)
+    forced_note = (
+        ""
+        if reliability.fit_finished
+        else "FORCED on a calibration that is not trusted: not a model-discrepancy finding"
+    )
+    write_figures(report, out, forced_note)
     print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
     g0, g1 = report.gap_before, report.gap_after
     if report.verdict == "named" and reliability.fit_finished:

@@ -45,28 +45,42 @@ def _heat_map(
     return image
 
 
-def heat_map_figure(detection: Detection, edges_hz: np.ndarray, path: Path | None = None) -> object:
-    """The channel × frequency map of standardised residuals Z; saved when ``path`` is given."""
+def heat_map_figure(
+    detection: Detection, edges_hz: np.ndarray, path: Path | None = None, note: str = ""
+) -> object:
+    """The channel × frequency map of standardised residuals Z; saved when ``path`` is given
+    (``note`` heads it in red, see :func:`before_after_figure`)."""
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 4), constrained_layout=True)
     image = _heat_map(ax, detection, edges_hz, f"standardised residual Z (BH q = {detection.q})")
     fig.colorbar(image, ax=ax, label="Z (+: model too little energy)")
+    if note:
+        fig.suptitle(note, fontsize=9, color="C3")
     if path is not None:
         fig.savefig(path, dpi=110)
         plt.close(fig)
     return fig
 
 
-def before_after_figure(report: DiagnosisReport, path: Path | None = None) -> object:
-    """Heat maps before/after adding the named effect and the worst channel's spectra."""
+def before_after_figure(
+    report: DiagnosisReport, path: Path | None = None, note: str = ""
+) -> object:
+    """Heat maps before/after adding the named effect and the worst channel's spectra.
+
+    ``note`` (e.g. that the run was forced on a calibration that is not trusted) heads the
+    figure in red, so that the file read alone does not contradict the verdict.
+    """
     import matplotlib.pyplot as plt
 
     edges = report.problem.spec.spectrum.band_edges_hz()
     after = report.after if report.after is not None else report.before
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
     limit = _z_limit(report.before, after)  # one colour bar for both maps
-    _heat_map(axes[0], report.before, edges, "before", limit)
+    _heat_map(
+        axes[0], report.before, edges,
+        f"before ({report.verdict}): gap {report.gap_before['value']:.3g}", limit,
+    )  # fmt: skip
     label = report.named_effect or "nothing added"
     title = f"after ({label}): gap {report.gap_after['value']:.3g}"
     if report.after is None:
@@ -74,9 +88,11 @@ def before_after_figure(report: DiagnosisReport, path: Path | None = None) -> ob
     elif not report.accepted:
         title += " — not better: base model kept"
     image = _heat_map(axes[1], after, edges, title, limit)
-    axes[0].set_title(f"before ({report.verdict}): gap {report.gap_before['value']:.3g}",
-                      fontsize=9)  # fmt: skip
-    fig.colorbar(image, ax=axes[:2], label="Z")
+    fig.colorbar(image, ax=axes[:2], label="Z (+: model too little energy)")
+    caption = "gap: mean Z² on the bins flagged before (≈ 1 or less: consistent with B)"
+    if note:
+        caption = f"{note} — {caption}"
+    fig.suptitle(caption, fontsize=9, color="C3" if note else "0.2")
     worst = (
         report.problem.spec.channels.index(report.before.bands[0].channel)
         if report.before.bands
@@ -104,10 +120,11 @@ def before_after_figure(report: DiagnosisReport, path: Path | None = None) -> ob
     return fig
 
 
-def write_figures(report: DiagnosisReport, out: Path) -> list[Path]:
-    """``discrepancy_heatmap.png`` and ``discrepancy_before_after.png`` in ``out``."""
+def write_figures(report: DiagnosisReport, out: Path, note: str = "") -> list[Path]:
+    """``discrepancy_heatmap.png`` and ``discrepancy_before_after.png`` in ``out`` (``note``:
+    see :func:`before_after_figure`, also on the heat map)."""
     edges = report.problem.spec.spectrum.band_edges_hz()
     paths = [out / "discrepancy_heatmap.png", out / "discrepancy_before_after.png"]
-    heat_map_figure(report.before, edges, paths[0])
-    before_after_figure(report, paths[1])
+    heat_map_figure(report.before, edges, paths[0], note)
+    before_after_figure(report, paths[1], note)
     return paths

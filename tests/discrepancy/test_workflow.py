@@ -73,9 +73,18 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(
 
         fig = before_after_figure(report)
         before, after_map = (ax.collections[0].get_clim() for ax in fig.axes[:2])
+        # one title per map (two were drawn on top of each other), "gap" defined
+        titles = [[t.get_text() for t in (a.title, a._left_title) if t.get_text()]
+                  for a in fig.axes[:2]]  # fmt: skip
+        caption = fig._suptitle.get_text()
         plt.close(fig)
+        assert [len(t) for t in titles] == [1, 1] and titles[0][0].startswith("before (named)")
+        assert caption.startswith("gap: mean Z² on the bins flagged before")
         assert before == after_map
         assert before[1] >= np.nanmax(np.abs(report.before.z))  # the flagged peak not clipped
+        forced = before_after_figure(report, note="FORCED on a calibration that is not trusted")
+        assert forced._suptitle.get_text().startswith("FORCED")
+        plt.close(forced)
 
 
 def test_an_air_spring_reservoir_of_three_bellows_volumes_is_named_at_200_kmh(
