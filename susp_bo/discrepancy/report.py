@@ -96,6 +96,21 @@ class DiagnosisReport:
             )
             lpd0, lpd1 = self.before.log_predictive_density, self.after.log_predictive_density
             share0, share1 = self.before.flagged_fraction, self.after.flagged_fraction
+            if self.after.bands:  # what the named effect leaves, said, not only in the JSON
+                runner_up = next(
+                    (r for r in self.ranking[1:] if r.fit is not None and r.score > 0), None
+                )
+                text += (
+                    f" Still flagged with it: {len(self.after.bands)} band(s), strongest "
+                    f"{describe_band(self.after.bands[0])}"
+                    + (
+                        f"; the next candidate, {runner_up.effect}, scored "
+                        f"{runner_up.score:.3g} nats: a second missing effect may remain"
+                        if runner_up is not None
+                        else ""
+                    )
+                    + "."
+                )
             if self.accepted:
                 return (
                     f"{text} Augmented model accepted: log predictive density over all bins "

@@ -231,3 +231,20 @@ def test_the_linear_simulator_refuses_a_run_whose_speed_varies(base_spec, linear
     steady = SpeedProfile(np.array([0.0, duration]), np.array([80.0, 82.0]))  # 2.5 %: allowed
     spectra = linear_simulator.spectra(base_spec, names, dataclasses.replace(track, speed=steady))
     assert np.all(np.isfinite(spectra))
+
+
+def test_a_named_answer_says_what_is_still_flagged(base_spec, linear_simulator) -> None:
+    """With two effects in the data one was named and the other's bands, still flagged, were
+    only in discrepancy.json's flagged_after."""
+    problem = synthesize_problem(
+        base_spec, ("carbody_bending", {"frequency_hz": 10.0}), nu=3, seed=1, noise_m_s2=0.01,
+        speed_m_s=FAST,
+    )  # fmt: skip
+    report = run_workflow(problem, linear_simulator)
+    assert report.verdict == "named" and not report.after.bands
+    assert "Still flagged" not in report.sentence()
+    left = dataclasses.replace(report, after=report.before)  # as if nothing had been removed
+    sentence = left.sentence()
+    band = report.before.bands[0]
+    assert f"Still flagged with it: {len(report.before.bands)} band(s), strongest " in sentence
+    assert f"{band.f_low_hz:.2g}–" in sentence.split("Still flagged")[1]
