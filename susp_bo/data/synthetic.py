@@ -29,6 +29,22 @@ def track_seed(seed: int, run_index: int) -> int:
     return int(np.random.SeedSequence([seed, run_index, 1]).generate_state(1)[0])
 
 
+def check_synthesis(nu: object, seed: object, noise_m_s2: object) -> None:
+    """Refuse what :func:`synthesize_runs` cannot synthesise, before any simulation.
+
+    Raises:
+        ValueError: ``nu`` not an integer >= 1, ``seed`` not an integer >= 0, or
+            ``noise_m_s2`` not a finite real >= 0 (m/s²), naming the argument and value.
+    """
+    if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
+        raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ValueError(f"seed: got {seed!r}; expected an integer >= 0")
+    real = isinstance(noise_m_s2, numbers.Real) and not isinstance(noise_m_s2, bool)
+    if not (real and math.isfinite(noise_m_s2) and noise_m_s2 >= 0.0):
+        raise ValueError(f"noise_m_s2: got {noise_m_s2!r}; expected a finite value >= 0 m/s^2")
+
+
 def synthesize_runs(
     spec: RigSpec,
     truth: Mapping[str, float] | None = None,
@@ -63,12 +79,7 @@ def synthesize_runs(
             rig refuses, or a design that does not cover the runs — all before any
             simulation runs.
     """
-    if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
-        raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise ValueError(f"seed: got {seed!r}; expected an integer >= 0")
-    if not (math.isfinite(noise_m_s2) and noise_m_s2 >= 0.0):
-        raise ValueError(f"noise_m_s2: got {noise_m_s2}; expected a finite value >= 0 m/s^2")
+    check_synthesis(nu, seed, noise_m_s2)
     changes: dict[str, float] = {}
     if speed_m_s is not None:
         changes["speed_m_s"] = speed_m_s

@@ -20,8 +20,6 @@ import dataclasses
 import datetime as dt
 import itertools
 import json
-import math
-import numbers
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -32,7 +30,7 @@ import tomli_w
 
 from susp_bo.calibration.budget import budget_requirement
 from susp_bo.data.measured import save_run
-from susp_bo.data.synthetic import synthesize_runs
+from susp_bo.data.synthetic import check_synthesis, synthesize_runs
 from susp_bo.monitoring.alarms import CampaignRecord, apply_alarms
 from susp_bo.monitoring.campaigns import MANIFEST_NAME, safe_name
 from susp_bo.rig.catalog import rig_path
@@ -212,13 +210,7 @@ def write_scenario(
         spec.with_parameters({parameter: final})
     except ValueError as error:
         raise ValueError(f"final: {error}") from None
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise ValueError(f"seed: got {seed!r}; expected an integer >= 0")
-    if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
-        raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
-    real = isinstance(noise_m_s2, numbers.Real) and not isinstance(noise_m_s2, bool)
-    if not (real and math.isfinite(noise_m_s2) and noise_m_s2 >= 0.0):
-        raise ValueError(f"noise_m_s2: got {noise_m_s2!r}; expected a finite value >= 0 m/s^2")
+    check_synthesis(nu, seed, noise_m_s2)  # before the first campaign is written
     values = {
         vehicles[0]: linear_degradation(nominal, final, n_campaigns),
         **{v: np.full(n_campaigns, nominal) for v in vehicles[1:]},
