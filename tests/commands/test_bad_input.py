@@ -49,6 +49,13 @@ def runs_by_rig(rigs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory)
     return folders
 
 
+@pytest.fixture(scope="module")
+def short_a_runs(runs_by_rig: dict[str, Path]) -> tuple[MeasuredRun, ...]:
+    """The two runs of the ``short_a`` rig's folder, loaded (tests replace fields, never
+    mutate them)."""
+    return tuple(load_runs(runs_by_rig["short_a"]))
+
+
 def _refused(capsys: pytest.CaptureFixture[str], argv: list[str], *needles: str) -> str:
     """Run the CLI in-process; assert exit code 2, one message with every needle, no traceback."""
     code = main(argv)
@@ -86,12 +93,12 @@ def test_out_that_is_a_file_is_refused(
 
 def test_out_that_is_the_data_folder_is_refused(
     rigs: dict[str, Path],
-    runs_by_rig: dict[str, Path],
+    short_a_runs: tuple[MeasuredRun, ...],
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """The store, results, figures and log were written among the measured runs."""
-    runs = load_runs(runs_by_rig["short_a"])
+    runs = short_a_runs
     data = _data_folder(tmp_path, {"run_000.h5": runs[0], "run_001.h5": runs[1]})
     before = sorted(p.name for p in data.iterdir())
     argv = ["calibrate", str(rigs["short_a"]), str(data), "--out", str(data)]
@@ -357,11 +364,11 @@ def _data_folder(tmp_path: Path, runs: dict[str, MeasuredRun]) -> Path:
 
 def test_runs_at_different_sample_rates_are_named_by_file(
     rigs: dict[str, Path],
-    runs_by_rig: dict[str, Path],
+    short_a_runs: tuple[MeasuredRun, ...],
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    runs = load_runs(runs_by_rig["short_a"])
+    runs = short_a_runs
     fast = dataclasses.replace(runs[1], sample_rate_hz=2 * runs[1].sample_rate_hz)
     data = _data_folder(tmp_path, {"slow.h5": runs[0], "fast.h5": fast})
     rate = runs[0].sample_rate_hz
@@ -395,11 +402,11 @@ def test_an_empty_monitoring_folder_argument_is_refused_as_empty(
 
 def test_a_run_that_does_not_fit_the_band_is_named_by_its_file(
     rigs: dict[str, Path],
-    runs_by_rig: dict[str, Path],
+    short_a_runs: tuple[MeasuredRun, ...],
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    runs = load_runs(runs_by_rig["short_a"])
+    runs = short_a_runs
     short = dataclasses.replace(  # 1 s: shorter than one Welch segment
         runs[1], accelerations_m_s2=runs[1].accelerations_m_s2[:, : int(runs[1].sample_rate_hz)]
     )
