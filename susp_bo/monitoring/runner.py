@@ -404,13 +404,12 @@ def check_campaign(
         CampaignResultError: a stale or damaged results folder (nothing is changed).
     """
     if state == "finished":
-        read_finished(config.out, names)
         # the budget plays no part in a finished result: only its data are compared
         config = dataclasses.replace(
             config, budget=dataclasses.replace(config.budget, allow_small=True)
         )
     study = prepare_study(config, resume=(config.out / STORE_NAME).exists())
-    if state == "finished":  # the units the rig gives now are the result's
+    if state == "finished":  # readable, of these parameters, in the units the rig gives now
         read_finished(config.out, names, study.units)
     if state != "new":
         check_campaign_store(study, finished=state == "finished", campaign_folder=campaign.folder)
