@@ -211,6 +211,14 @@ def apply_alarms(
     return states
 
 
+def histories(records: Sequence[CampaignRecord]) -> dict[str, list[CampaignRecord]]:
+    """Each vehicle's campaigns in date order, vehicles sorted."""
+    by_vehicle: dict[str, list[CampaignRecord]] = {}
+    for record in sorted(records, key=lambda r: (r.vehicle, r.date)):
+        by_vehicle.setdefault(record.vehicle, []).append(record)
+    return by_vehicle
+
+
 def maintenance_table(
     records: Sequence[CampaignRecord],
     states: Mapping[str, Mapping[str, ParameterState]],
@@ -227,9 +235,7 @@ def maintenance_table(
         campaigns after it that could not confirm or clear the alarm.
     """
     descriptions = descriptions or {}
-    by_vehicle: dict[str, list[CampaignRecord]] = {}
-    for record in sorted(records, key=lambda r: (r.vehicle, r.date)):
-        by_vehicle.setdefault(record.vehicle, []).append(record)
+    by_vehicle = histories(records)
     rows: list[dict[str, Any]] = []
     for vehicle, history in by_vehicle.items():
         names = list(states[history[-1].campaign_id])
@@ -280,9 +286,7 @@ def attention_table(
         ``last_trusted_campaign``, ``no_domain`` (parameter names), only for vehicles
         with something to say.
     """
-    by_vehicle: dict[str, list[CampaignRecord]] = {}
-    for record in sorted(records, key=lambda r: (r.vehicle, r.date)):
-        by_vehicle.setdefault(record.vehicle, []).append(record)
+    by_vehicle = histories(records)
     rows: list[dict[str, Any]] = []
     for vehicle, history in by_vehicle.items():
         last = history[-1]
