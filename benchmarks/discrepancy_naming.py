@@ -89,13 +89,15 @@ SPEEDS = (55.56, 83.33)
 
 
 CASE_SECONDS: list[float] = []
+OUTPUT_ERROR = ["unpaired"]
+"""fast mode: the scale the checks judge residuals on (``--output-error``)."""
 """Seconds of each fast-path case (synthesis + workflow), in the order run."""
 
 
 def _timed_case(simulator, spec, effect, **kwargs):
     """Synthesise one fast-path case and run the workflow on it; its seconds are kept."""
     started = time.perf_counter()
-    problem = synthesize_problem(spec, effect, **kwargs)
+    problem = synthesize_problem(spec, effect, output_error=OUTPUT_ERROR[0], **kwargs)
     report = run_workflow(problem, simulator)
     CASE_SECONDS.append(time.perf_counter() - started)
     return report
@@ -234,6 +236,9 @@ def main() -> None:
                         help="fast mode: which parts to run")  # fmt: skip
     parser.add_argument("--effects", nargs="+", choices=list(LADDERS), default=None,
                         help="fast mode, ladder part: only these effects")  # fmt: skip
+    parser.add_argument("--output-error", choices=("unpaired", "paired"), default="unpaired",
+                        help="fast mode: the detection scale (σ_B, as susp-bo diagnose; or the "
+                             "paired scale of susp_bo.discrepancy.detection_scale)")  # fmt: skip
     parser.add_argument("--out", default="discrepancy_naming_cli", help="cli mode: work folder")
     parser.add_argument("--cases", nargs="+",
                         default=[*NOMINAL, *MODIFICATIONS, "null"],
@@ -267,6 +272,7 @@ def main() -> None:
                              "(findings apart, verdict stays calibration_not_trusted)")  # fmt: skip
     args = parser.parse_args()
     if args.mode == "fast":
+        OUTPUT_ERROR[0] = args.output_error
         fast_mode(args.quick, args.parts, args.effects)
     else:
         cli_mode(args)

@@ -3,9 +3,12 @@
 For K posterior draws ``w_k`` re-simulated on every measured track ``x_i``,
 the standardised residual of run i, channel c, frequency f is
 
-    z_icf = (y_icf − mean_k h_kicf) / sqrt(var_k h_kicf + σ_c²)
+    z_icf = (y_icf − mean_k h_kicf − m_icf) / sqrt(var_k h_kicf + v_icf)
 
-(posterior predictive spread: parameter uncertainty plus the output error B).
+(posterior predictive spread: parameter uncertainty plus the output error B, whose
+expected residual m and variance v come from :mod:`.detection_scale`: σ_c² and 0 for
+an unpaired B; the Welch sensor-noise moments plus a robust model-error τ_c² for
+paired runs, each with its own measured track).
 The runs are combined as ``Z_cf = Σ_i z_icf / √ν`` (N(0, 1) under the model when
 the runs are independent), two-sided p-values ``2 Φ(−|Z|)`` are tested over all
 C × F bins with the Benjamini–Hochberg procedure at false-discovery rate q
@@ -14,10 +17,12 @@ channel with one sign merge into bands. A band's sign is ``model_too_little``
 when the data hold more energy than the model (Z > 0), else ``model_too_much``;
 its strength is the mean |Z| and the mean residual in dB (20 log10 e × Δ ln).
 
-False alarms: σ_B of a study is estimated from the scatter between runs on
-*different* tracks, while the check pairs each run with its own track, so under
-the null the z's are narrower than N(0, 1) and BH at q bounds the chance of any
-false flag by q (measured on null data in the tests and the benchmark).
+False alarms: under the paired scale the z's are ≈ N(0, 1) on null data (mean Z²
+≈ 1, measured in the tests); under an unpaired σ_B (the scatter between runs on
+*different* tracks) they are far narrower, the check is conservative and
+under-powered on paired data. Neighbouring low bands share Welch bins and their z's
+correlate positively; BH at q keeps its false-discovery control under such
+dependence (measured on null data in the tests and the benchmark).
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ from typing import Any
 
 import numpy as np
 from scipy.stats import norm
+
+from susp_bo.discrepancy.detection_scale import DetectionScale, unpaired_scale
 
 FloatArray = np.ndarray
 DB_PER_NEPER = 20.0 / math.log(10.0)
@@ -77,12 +84,13 @@ class Detection:
         channels: (C,) names.
         frequencies_hz: (F,) grid.
         z: (C x F) combined standardised residuals Z.
-        residual: (C x F) mean over runs of y − E[h] (natural-log units).
+        residual: (C x F) mean over runs of y − E[h] − m (natural-log units).
         p_values: (C x F) two-sided p-values.
         flagged: (C x F) bins rejected by BH.
         bands: the merged flagged bands.
         q: false-discovery rate of the test.
-        log_predictive_density: Σ over runs and bins of log N(y; E[h], var h + σ²).
+        log_predictive_density: Σ over runs and bins of log N(y; E[h] + m, var h + v).
+        scale: the output error's scale the check used.
     """
 
     channels: tuple[str, ...]
@@ -94,6 +102,7 @@ class Detection:
     bands: tuple[FlaggedBand, ...]
     q: float
     log_predictive_density: float
+    scale: DetectionScale | None = None
 
     @property
     def flagged_fraction(self) -> float:
@@ -119,7 +128,7 @@ def benjamini_hochberg(p_values: FloatArray, q: float) -> FloatArray:
 def predictive_check(
     measured: FloatArray,
     predicted: FloatArray,
-    sigma: FloatArray,
+    sigma: FloatArray | DetectionScale,
     channels: tuple[str, ...],
     edges_hz: FloatArray,
     q: float = 0.05,
@@ -129,7 +138,8 @@ def predictive_check(
     Args:
         measured: (ν x C x F) measured log-amplitude spectra.
         predicted: (K x ν x C x F) re-simulated spectra of K posterior draws on each run's track.
-        sigma: (C,) σ_B.
+        sigma: (C,) σ_B (an unpaired B), or the :class:`~.detection_scale.DetectionScale`
+            of B for these data (offset and variance (ν x C x F)).
         channels: (C,) names.
         edges_hz: (F + 1,) band edges of the grid (Hz).
         q: BH false-discovery rate.
@@ -143,10 +153,15 @@ def predictive_check(
     nu = y.shape[0]
     mean = h.mean(axis=0)
     var = h.var(axis=0, ddof=1) if h.shape[0] > 1 else np.zeros_like(mean)
-    total = var + np.asarray(sigma, dtype=np.float64)[None, :, None] ** 2
-    z_runs = (y - mean) / np.sqrt(total)
+    scale = sigma if isinstance(sigma, DetectionScale) else unpaired_scale(sigma, y.shape)
+    if scale.variance.shape != y.shape or scale.offset.shape != y.shape:
+        raise ValueError(
+            f"sigma: a scale of shape {scale.variance.shape}; expected {y.shape} (ν x C x F)"
+        )
+    total = var + scale.variance
+    z_runs = (y - mean - scale.offset) / np.sqrt(total)
     z = z_runs.sum(axis=0) / math.sqrt(nu)
-    residual = (y - mean).mean(axis=0)
+    residual = (y - mean - scale.offset).mean(axis=0)
     p = 2.0 * norm.sf(np.abs(z))
     flagged = benjamini_hochberg(p, q)
     lpd = float(np.sum(-0.5 * z_runs**2 - 0.5 * np.log(2 * math.pi * total)))
@@ -189,6 +204,7 @@ def predictive_check(
         bands=tuple(bands),
         q=q,
         log_predictive_density=lpd,
+        scale=scale,
     )
 
 

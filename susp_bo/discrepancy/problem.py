@@ -25,6 +25,8 @@ import numpy as np
 
 from susp_bo.calibration.evaluation import TrackRun, simulate_spectra
 from susp_bo.calibration.likelihood import OutputError
+from susp_bo.calibration.paired_error import PairedOutputError
+from susp_bo.discrepancy.detection_scale import DetectionScale, paired_scale, unpaired_scale
 from susp_bo.rig.linear import LinearisedRig
 from susp_bo.rig.linear_curving import LinearModelNotApplicable
 from susp_bo.rig.spec import RigSpec
@@ -138,9 +140,14 @@ class DiagnosisProblem:
         bounds: (2 x q) admissible set.
         measured: (ν x C x F) measured log-amplitude spectra.
         tracks: the ν tracks, ``tracks[i]`` is where ``measured[i]`` was taken.
-        error: the output error B (σ_B per channel).
+        error: the unpaired output error (σ_B per channel, the scatter between runs): the
+            metric of the refits' least squares and of the ranking's eq. 4 scores.
         noise_m_s2: known sensor noise (m/s² rms), 0 when negligible or unknown.
         reference: true parameter values by name when the data are synthetic, else None.
+        paired: the paired output error of these runs (each with its own measured track),
+            or None: when given, the checks judge residuals on its scale
+            (:func:`~.detection_scale.paired_scale`) and the refits' Laplace posteriors
+            use it; else on σ_B (:func:`~.detection_scale.unpaired_scale`).
     """
 
     spec: RigSpec
@@ -151,6 +158,7 @@ class DiagnosisProblem:
     error: OutputError
     noise_m_s2: float = 0.0
     reference: Mapping[str, float] | None = None
+    paired: PairedOutputError | None = None
 
     def __post_init__(self) -> None:
         measured = np.asarray(self.measured, dtype=np.float64)
@@ -181,6 +189,17 @@ class DiagnosisProblem:
             )
         if not (math.isfinite(self.noise_m_s2) and self.noise_m_s2 >= 0):
             raise ValueError(f"noise_m_s2: got {self.noise_m_s2}; must be a finite value >= 0 m/s²")
+        if self.paired is not None:
+            if not isinstance(self.paired, PairedOutputError):
+                raise ValueError(
+                    f"paired: got {type(self.paired).__name__}; expected a PairedOutputError "
+                    "or None"
+                )
+            if len(self.paired.n_samples) != measured.shape[0]:
+                raise ValueError(
+                    f"paired: an error model of {len(self.paired.n_samples)} runs for "
+                    f"{measured.shape[0]} measured runs"
+                )
         object.__setattr__(self, "measured", measured)
         object.__setattr__(self, "bounds", bounds)
         object.__setattr__(self, "names", tuple(self.names))
@@ -194,6 +213,13 @@ class DiagnosisProblem:
     def sigma(self) -> FloatArray:
         """(C,) σ_B per channel."""
         return np.asarray(self.error.sigma, dtype=np.float64)
+
+    def detection_scale(self, predicted: FloatArray) -> DetectionScale:
+        """B's expected residual and variance (ν x C x F) around ``predicted`` (ν x C x F):
+        paired when :attr:`paired` is given, else σ_B."""
+        if self.paired is not None:
+            return paired_scale(self.measured, predicted, self.paired)
+        return unpaired_scale(self.sigma, self.measured.shape)
 
     def simulate(
         self,

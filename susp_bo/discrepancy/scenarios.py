@@ -24,6 +24,7 @@ import numpy as np
 
 from susp_bo.calibration.evaluation import TrackRun
 from susp_bo.calibration.likelihood import estimate_output_error
+from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.data.synthetic import track_seed
 from susp_bo.discrepancy.effects import maintainer_base, with_effect
 from susp_bo.discrepancy.out_of_library import get_modification
@@ -70,6 +71,7 @@ def synthesize_problem(
     speed_m_s: float | None = None,
     generator: str = "linear",
     modification: str | None = None,
+    output_error: str = "unpaired",
 ) -> DiagnosisProblem:
     """Measured spectra with a hidden effect, paired with their tracks, for the base ``spec``.
 
@@ -84,9 +86,16 @@ def synthesize_problem(
         generator: ``linear``, ``pybullet`` or ``pybullet_linear``.
         modification: an out-of-library change of the generator
             (:data:`~.out_of_library.MODIFICATIONS`), or None.
+        output_error: ``unpaired`` (the checks judge residuals on σ_B, the scatter between
+            runs: what ``susp-bo diagnose`` does) or ``paired`` (each run against its own
+            track on the sensor-noise scale plus a robust model error,
+            :func:`~.detection_scale.paired_scale`: only for data the simulator reproduces
+            up to sensor noise, see that module).
     """
     if nu < 2:
         raise ValueError(f"nu: got {nu}; need >= 2 runs to estimate σ_B")
+    if output_error not in ("paired", "unpaired"):
+        raise ValueError(f"output_error: got {output_error!r}; allowed 'paired', 'unpaired'")
     truth = dict(WORN_TRUTH if truth is None else truth)
     speed = spec.simulation.speed_m_s if speed_m_s is None else float(speed_m_s)
     spec = spec.with_simulation(speed_m_s=speed)
@@ -104,7 +113,7 @@ def synthesize_problem(
     sim = spec.simulation
     total = sim.warm_up_s + sim.duration_s
     profile = SpeedProfile.constant(speed, total)
-    measured, tracks = [], []
+    measured, tracks, n_samples = [], [], []
     rig = Rig(true_spec, linear_elements=generator == "pybullet_linear")
     try:
         for index in range(nu):
@@ -132,6 +141,7 @@ def synthesize_problem(
                 signals, response.sample_rate_hz, response.channels, spec.spectrum
             )
             measured.append(spectra.log_amplitude)
+            n_samples.append(int(signals.shape[-1]))
             tracks.append(TrackRun(f"run{index:03d}", geometry, profile))
     finally:
         rig.close()
@@ -145,4 +155,7 @@ def synthesize_problem(
         error=estimate_output_error(measured_array),
         noise_m_s2=noise_m_s2,
         reference=reference,
+        paired=PairedOutputError(noise_m_s2, sim.sample_rate_hz, tuple(n_samples), spec.spectrum)
+        if output_error == "paired"
+        else None,
     )

@@ -122,7 +122,7 @@ def check(
     return predictive_check(
         problem.measured,
         predicted,
-        problem.sigma,
+        problem.detection_scale(predicted.mean(axis=0)),
         problem.spec.channels,
         problem.spec.spectrum.band_edges_hz(),
         settings.q,
