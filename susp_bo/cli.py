@@ -163,7 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     diagnose.add_argument(
         "--budget",
         type=integer(2),
-        help="likelihood evaluations of the recalibration (default: the study's)",
+        help="likelihood evaluations of the recalibration (default: the study's; "
+        "--simulator pybullet only: the linear path recalibrates by least squares)",
     )
     diagnose.add_argument(
         "--force",

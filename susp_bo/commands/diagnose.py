@@ -327,6 +327,13 @@ def run_diagnose(args: argparse.Namespace) -> int:
     force = bool(getattr(args, "force", False))
     if budget is not None and budget < 2:
         raise UsageError(f"--budget: got {budget}; expected an integer >= 2 evaluations")
+    if budget is not None and kind == "linear":  # else silently ignored
+        raise UsageError(
+            f"--budget: got {budget} with --simulator linear, where the augmented model is "
+            "the ranking's least-squares refit and nothing is recalibrated; --budget is the "
+            "recalibration's evaluations with --simulator pybullet (the default): drop one "
+            "of the two"
+        )
     if args.out and (Path(args.out) / DOCUMENT_NAME).exists():
         # the recalibration's store and result would be replaced: never silently
         raise UsageError(

@@ -32,6 +32,17 @@ def test_a_budget_below_two_is_refused(tmp_path: Path, capsys) -> None:
     assert not (tmp_path / "o").exists()
 
 
+def test_a_budget_with_the_linear_simulator_is_refused_not_ignored(
+    tmp_path: Path, capsys
+) -> None:
+    folder = _result_dir(tmp_path, {})
+    arguments = ["diagnose", str(folder), "--out", str(tmp_path / "o")]
+    assert main([*arguments, "--simulator", "linear", "--budget", "30"]) == 2
+    error = capsys.readouterr().err
+    assert "--budget: got 30 with --simulator linear" in error and "Traceback" not in error
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_result_that_is_not_json_is_refused(tmp_path: Path, capsys) -> None:
     folder = _result_dir(tmp_path, "{not json")
     assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 2
