@@ -32,9 +32,7 @@ def test_a_budget_below_two_is_refused(tmp_path: Path, capsys) -> None:
     assert not (tmp_path / "o").exists()
 
 
-def test_a_budget_with_the_linear_simulator_is_refused_not_ignored(
-    tmp_path: Path, capsys
-) -> None:
+def test_a_budget_with_the_linear_simulator_is_refused_not_ignored(tmp_path: Path, capsys) -> None:
     folder = _result_dir(tmp_path, {})
     arguments = ["diagnose", str(folder), "--out", str(tmp_path / "o")]
     assert main([*arguments, "--simulator", "linear", "--budget", "30"]) == 2
