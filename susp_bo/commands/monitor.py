@@ -79,7 +79,7 @@ def run_monitor(args: argparse.Namespace) -> int:
         check_output_folder(args.out)
     except ValueError as error:
         raise UsageError(str(error)) from None
-    from susp_bo.monitoring.runner import MonitorError, monitor
+    from susp_bo.monitoring.runner import CLI_NAMES, MonitorError, monitor
 
     parameters = None
     if args.parameters is not None:
@@ -103,6 +103,7 @@ def run_monitor(args: argparse.Namespace) -> int:
             threshold=args.threshold,
             allow_small_budget=args.allow_small_budget,
             warm_start=not args.cold_start,
+            argument_names=CLI_NAMES,
         )
     except MonitorError as error:
         raise UsageError(str(error)) from None

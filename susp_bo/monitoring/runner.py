@@ -39,7 +39,7 @@ import dataclasses
 import numbers
 import sys
 import tomllib
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -84,6 +84,13 @@ class MonitorError(ValueError):
     """A monitoring run that cannot start: bad folder, settings or campaign."""
 
 
+ARGUMENTS = ("rig", "parameters", "budget", "workers", "scheduler")
+API_NAMES = {name: name for name in ARGUMENTS}
+"""How errors name the arguments of :func:`monitor` called from Python (its keywords)."""
+CLI_NAMES = {name: f"--{name}" for name in ARGUMENTS}
+"""How errors name them for ``susp-bo monitor`` (its flags)."""
+
+
 def _flag_error(flag: str, key: str, error: Exception) -> MonitorError:
     """``error`` (a message ``"<key>: …"`` of the study config) blamed on ``flag``."""
     text = str(error)
@@ -100,13 +107,15 @@ def base_config(
     workers: int | None = None,
     scheduler: str | None = None,
     allow_small_budget: bool = False,
+    arguments: Mapping[str, str] = CLI_NAMES,
 ) -> StudyConfig:
     """The study config every campaign shares (``data``/``out`` set per campaign).
 
-    The arguments override ``monitor.toml``; a bad argument is refused naming its flag
-    (``--rig``, ``--parameters``, ``--budget``, ``--workers``/``--scheduler``), a bad
-    value of the file naming the file. A rig path given as an argument is relative to the
-    current folder, one in ``monitor.toml`` to the monitoring folder.
+    The arguments override ``monitor.toml``; a bad argument is refused naming it as
+    ``arguments`` does (:data:`CLI_NAMES`: ``--rig``, ``--parameters``, …;
+    :data:`API_NAMES`: the keywords), a bad value of the file naming the file. A rig path
+    given as an argument is relative to the current folder, one in ``monitor.toml`` to the
+    monitoring folder.
 
     Raises:
         MonitorError: a bad ``monitor.toml`` or argument.
@@ -137,20 +146,20 @@ def base_config(
         try:
             mapping["rig"] = parse_study_config({"rig": str(rig), **paths}, Path.cwd()).rig
         except (ValueError, TypeError) as error:
-            raise _flag_error("--rig", "rig", error) from None
+            raise _flag_error(arguments["rig"], "rig", error) from None
     if parameters is not None:
         if isinstance(parameters, str) or not isinstance(parameters, Iterable):
             example = [parameters] if isinstance(parameters, str) else ["yaw_damper_damping"]
             raise MonitorError(
-                f"--parameters: {parameters!r} is not allowed; expected a non-empty list of "
-                f"distinct calibration parameter names, e.g. {example!r}"
+                f"{arguments['parameters']}: {parameters!r} is not allowed; expected a "
+                f"non-empty list of distinct calibration parameter names, e.g. {example!r}"
             )
         try:  # the list alone (distinct names); the rig's calibration set is checked later
             parse_study_config(
                 {"rig": "hst_trailer", "parameters": list(parameters), **paths}, folder
             )
         except (ValueError, TypeError) as error:
-            raise _flag_error("--parameters", "parameters", error) from None
+            raise _flag_error(arguments["parameters"], "parameters", error) from None
         mapping["parameters"] = list(parameters)
     where = f"{path}: " if path.is_file() else ""
     try:
@@ -161,7 +170,7 @@ def base_config(
         isinstance(budget, bool) or not isinstance(budget, numbers.Integral) or budget < 2
     ):  # checked here: the design size is cut to the budget first and would be blamed
         raise MonitorError(
-            f"--budget: {budget!r} is not allowed; expected an integer >= 2 "
+            f"{arguments['budget']}: {budget!r} is not allowed; expected an integer >= 2 "
             "(likelihood evaluations per campaign)"
         )
     try:
@@ -175,7 +184,7 @@ def base_config(
                 ),
             )
     except (ValueError, TypeError) as error:
-        raise MonitorError(f"--budget: {error}") from None
+        raise MonitorError(f"{arguments['budget']}: {error}") from None
     if allow_small_budget:
         config = dataclasses.replace(
             config, budget=dataclasses.replace(config.budget, allow_small=True)
@@ -186,7 +195,7 @@ def base_config(
                 config, executor=ExecutorConfig(workers=workers, scheduler=scheduler)
             )
         except (ValueError, TypeError) as error:
-            flag = "--workers" if scheduler is None else "--scheduler"
+            flag = arguments["workers"] if scheduler is None else arguments["scheduler"]
             raise MonitorError(f"{flag}: {error}") from None
     return config
 
@@ -251,6 +260,7 @@ def monitor(
     figures: bool = True,
     progress: bool = True,
     warm_start: bool = True,
+    argument_names: Mapping[str, str] = API_NAMES,
 ) -> dict[str, Any]:
     """Calibrate every campaign in ``folder`` (resumably), then write ``monitor.json`` and figures.
 
@@ -272,6 +282,9 @@ def monitor(
             when that calibration was trusted (:func:`~susp_bo.monitoring.warm_start.
             plan_warm_start`: the design moves, the prior stays C_w); False = every
             campaign from the space-filling design.
+        argument_names: how errors name ``rig``, ``parameters``, ``budget``, ``workers``
+            and ``scheduler``: :data:`API_NAMES` (the keywords) or :data:`CLI_NAMES` (the
+            flags of ``susp-bo monitor``).
 
     Returns:
         The ``monitor.json`` payload.
@@ -300,8 +313,11 @@ def monitor(
         workers=workers,
         scheduler=scheduler,
         allow_small_budget=allow_small_budget,
+        arguments=argument_names,
     )
-    spec, names = _rig_and_names(base, folder, rig=rig, parameters=parameters)
+    spec, names = _rig_and_names(
+        base, folder, rig=rig, parameters=parameters, arguments=argument_names
+    )
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
@@ -372,6 +388,7 @@ def _rig_and_names(
     *,
     rig: str | None,
     parameters: Sequence[str] | None,
+    arguments: Mapping[str, str] = CLI_NAMES,
 ) -> tuple[Any, tuple[str, ...]]:
     """The rig and the calibrated names; an error names the flag or file that gave them."""
     path = folder / MONITOR_CONFIG_NAME
@@ -379,12 +396,13 @@ def _rig_and_names(
     try:
         spec = load_rig_spec(base.rig)
     except (FileNotFoundError, ValueError) as error:
-        raise MonitorError(f"{'--rig: ' if rig is not None else in_file}{error}") from None
+        where = f"{arguments['rig']}: " if rig is not None else in_file
+        raise MonitorError(f"{where}{error}") from None
     try:
         names = base.check_parameters(spec.calibration_names)
     except ValueError as error:
         if parameters is not None:
-            raise _flag_error("--parameters", "parameters", error) from None
+            raise _flag_error(arguments["parameters"], "parameters", error) from None
         raise MonitorError(f"{in_file}{error}") from None
     return spec, tuple(names)
 

@@ -129,12 +129,12 @@ def test_the_python_api_refuses_a_threshold_outside_0_1(folder: Path, tmp_path: 
     ("arguments", "expected"),
     [
         ({"threshold": "0.5"}, r"threshold: '0.5' \(str\) is not allowed; expected a probability"),
-        ({"budget": -5}, "--budget: -5 is not allowed; expected an integer >= 2"),
-        ({"budget": 1}, "--budget: 1 is not allowed; expected an integer >= 2"),
-        ({"budget": 60.0}, "--budget: 60.0 is not allowed"),
+        ({"budget": -5}, "budget: -5 is not allowed; expected an integer >= 2"),
+        ({"budget": 1}, "budget: 1 is not allowed; expected an integer >= 2"),
+        ({"budget": 60.0}, "budget: 60.0 is not allowed"),
         (
             {"parameters": "yaw_damper_damping"},
-            r"--parameters: 'yaw_damper_damping' is not allowed; expected a non-empty list .* "
+            r"parameters: 'yaw_damper_damping' is not allowed; expected a non-empty list .* "
             r"e\.g\. \['yaw_damper_damping'\]",
         ),
     ],
@@ -144,9 +144,23 @@ def test_the_python_api_names_the_bad_argument(
 ) -> None:
     """A str threshold was a TypeError from '<', budget = -5 blamed budget.initial_design
     (the design size cut to the budget), a str of parameters was split into characters."""
-    with pytest.raises(MonitorError, match=expected):
+    with pytest.raises(MonitorError, match=expected) as raised:
         susp_bo.monitor(folder, tmp_path / "out", progress=False, **arguments)
+    assert "--" not in str(raised.value).split(":")[0]  # the keyword, not susp-bo's flag
     assert not (tmp_path / "out").exists()
+
+
+def test_the_python_api_names_a_bad_rig_or_parameter_by_its_keyword(
+    folder: Path, tmp_path: Path
+) -> None:
+    """Errors of susp_bo.monitor(parameters=...) told a Python caller to fix --parameters."""
+    with pytest.raises(MonitorError, match=r"^parameters: .*nonexistent") as raised:
+        susp_bo.monitor(folder, tmp_path / "out", parameters=["nonexistent"], progress=False)
+    assert "--parameters" not in str(raised.value)
+    with pytest.raises(MonitorError, match=r"^rig: 'nosuchrig' is not allowed"):
+        susp_bo.monitor(folder, tmp_path / "out", rig="nosuchrig", progress=False)
+    with pytest.raises(MonitorError, match=r"^workers: "):
+        susp_bo.monitor(folder, tmp_path / "out", workers=-3, progress=False)
 
 
 def test_the_minimum_a_small_budget_is_told_is_a_budget_that_runs(
