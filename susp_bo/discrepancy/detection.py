@@ -17,6 +17,17 @@ channel with one sign merge into bands. A band's sign is ``model_too_little``
 when the data hold more energy than the model (Z > 0), else ``model_too_much``;
 its strength is the mean |Z| and the mean residual in dB (20 log10 e × Δ ln).
 
+**Whole-channel level.** A sensor gain error (or a mounting that shifts one channel's
+level) moves every bin of a channel a little: on σ_B no single bin may pass BH (a
+3 dB gain gave mean Z ≈ +2.3 per bin and came back ``consistent``). So each channel is
+also tested as a whole: ``Z̄_c = √F · mean_f Z_cf`` (N(0, 1) for independent unit z's;
+conservative on σ_B, whose z's are far narrower), BH over the C channels at q, and a
+channel is reported as a :class:`ChannelOffset` when it passes *and* the median over
+its bands of the run-mean residual is at least :data:`MIN_CHANNEL_OFFSET_DB` — the
+median, so that a strong band is not mistaken for a level shift, and a floor, because
+a simulator's own level error on a channel (measured: ≤ 0.3 dB between PyBullet data
+and the linearised rig) is no finding.
+
 False alarms: under the paired scale the z's are ≈ N(0, 1) on null data (mean Z²
 ≈ 1, measured in the tests); under an unpaired σ_B (the scatter between runs on
 *different* tracks) they are far narrower, the check is conservative and
@@ -76,6 +87,62 @@ class FlaggedBand:
         }
 
 
+MIN_CHANNEL_OFFSET_DB = 1.0
+"""Smallest whole-channel level difference (median over the channel's bands, dB) reported."""
+
+
+@dataclass(frozen=True)
+class ChannelOffset:
+    """A channel whose whole spectrum sits above or below the model (a level error).
+
+    Attributes:
+        channel: channel name.
+        offset_db: median over the channel's bands of the mean data − model residual, dB
+            (> 0: the data hold more energy).
+        z: the channel's combined statistic √F · mean_f Z.
+        p_value: its two-sided p-value (BH over the channels at the check's q).
+    """
+
+    channel: str
+    offset_db: float
+    z: float
+    p_value: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready."""
+        return {
+            "channel": self.channel,
+            "offset_db": self.offset_db,
+            "z": self.z,
+            "p_value": self.p_value,
+        }
+
+
+def channel_offsets(
+    z: FloatArray, residual: FloatArray, channels: tuple[str, ...], q: float
+) -> tuple[ChannelOffset, ...]:
+    """The whole-channel level test of the module docstring.
+
+    Args:
+        z: (C x F) combined standardised residuals Z.
+        residual: (C x F) mean over runs of the residual (natural-log units).
+        channels: (C,) names.
+        q: BH false-discovery rate.
+    """
+    n_f = z.shape[1]
+    z_channel = np.sqrt(n_f) * np.mean(z, axis=1)
+    p = 2.0 * norm.sf(np.abs(z_channel))
+    level_db = DB_PER_NEPER * np.median(residual, axis=1)
+    passes = benjamini_hochberg(p, q)
+    return tuple(
+        ChannelOffset(channels[c], float(level_db[c]), float(z_channel[c]), float(p[c]))
+        for c in range(len(channels))
+        if passes[c]
+        and abs(level_db[c]) >= MIN_CHANNEL_OFFSET_DB
+        and np.sign(level_db[c]) == np.sign(z_channel[c])
+    )
+
+
 @dataclass(frozen=True)
 class Detection:
     """Outcome of the predictive check.
@@ -91,6 +158,7 @@ class Detection:
         q: false-discovery rate of the test.
         log_predictive_density: Σ over runs and bins of log N(y; E[h] + m, var h + v).
         scale: the output error's scale the check used.
+        offsets: channels whose whole level disagrees (:func:`channel_offsets`).
     """
 
     channels: tuple[str, ...]
@@ -103,6 +171,7 @@ class Detection:
     q: float
     log_predictive_density: float
     scale: DetectionScale | None = None
+    offsets: tuple[ChannelOffset, ...] = ()
 
     @property
     def flagged_fraction(self) -> float:
@@ -205,6 +274,7 @@ def predictive_check(
         q=q,
         log_predictive_density=lpd,
         scale=scale,
+        offsets=channel_offsets(z, residual, tuple(channels), q),
     )
 
 

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from susp_bo.discrepancy.detection import Detection
+from susp_bo.discrepancy.detection import MIN_CHANNEL_OFFSET_DB, ChannelOffset, Detection
 from susp_bo.discrepancy.fitting import Fit
 from susp_bo.discrepancy.problem import DiagnosisProblem
 from susp_bo.discrepancy.ranking import RankedEffect
@@ -75,10 +75,17 @@ class DiagnosisReport:
         n_bins = int(self.before.z.size)
         if self.verdict == "consistent":
             return (
-                f"consistent: no bin of {n_bins} (channels × frequencies) disagrees beyond "
-                f"the output error at the Benjamini–Hochberg level q = {self.before.q}; "
-                "nothing to name."
+                f"consistent: no bin of {n_bins} (channels × frequencies) and no channel's "
+                "whole level disagrees beyond the output error at the Benjamini–Hochberg "
+                f"level q = {self.before.q}; nothing to name."
             )
+        if self.verdict == "unexplained_disagreement" and not self.before.bands:
+            return f"unexplained_disagreement: {offsets_sentence(self.before.offsets)}"
+        return self._sentence() + (
+            f" Also: {offsets_sentence(self.before.offsets)}" if self.before.offsets else ""
+        )
+
+    def _sentence(self) -> str:
         if self.verdict == "unexplained_disagreement":
             text = unexplained_sentence(self.before.bands, [r.effect for r in self.ranking])
             if self.naming_check is not None:
@@ -162,6 +169,7 @@ class DiagnosisReport:
             "verdict": self.verdict,
             "sentence": self.sentence(),
             "flagged": [band.to_dict() for band in self.before.bands],
+            "channel_offsets": [o.to_dict() for o in self.before.offsets],
             "flagged_descriptions": [describe_band(b) for b in self.before.bands],
             "ranking": ranking,
             "named_effect": self.named_effect,
@@ -174,6 +182,9 @@ class DiagnosisReport:
             "gap_ratio": self.gap_ratio,
             "gap_ratio_all_bins": self.gap_ratio_all_bins,
             "flagged_after": [] if self.after is None else [b.to_dict() for b in self.after.bands],
+            "channel_offsets_after": []
+            if self.after is None
+            else [o.to_dict() for o in self.after.offsets],
             "parameters": self.parameter_table(),
             "detection": {
                 "q": self.before.q,
@@ -189,3 +200,21 @@ class DiagnosisReport:
             "simulator": self.simulator,
             **{k: v for k, v in self.extra.items() if k != "sentence"},
         }
+
+
+def offsets_sentence(offsets: tuple[ChannelOffset, ...]) -> str:
+    """What the whole-channel level errors mean, in one sentence (none: "")."""
+    if not offsets:
+        return ""
+    listed = "; ".join(
+        f"{o.channel} {o.offset_db:+.1f} dB throughout (median over its bands; channel "
+        f"Z {o.z:+.1f})"
+        for o in offsets
+    )
+    return (
+        f"the whole level of {len(offsets)} channel(s) differs from the model by "
+        f"{MIN_CHANNEL_OFFSET_DB:g} dB or more: {listed}. No library effect shifts one "
+        "channel's level across its band: check that sensor's gain, units and calibration "
+        "sheet, and its mounting, before reading the model (or the parameters calibrated "
+        "with it) as wrong."
+    )

@@ -194,9 +194,10 @@ def _run(
     name = simulator.name if fast is simulator else f"{simulator.name} (ranking: {fast.name})"
     common = {"problem": problem, "base": base, "before": before, "gap_before": gap,
               "simulator": name}  # fmt: skip
-    if not before.bands:
+    if not before.bands:  # a whole-channel level error alone: no library effect makes one
+        verdict = "unexplained_disagreement" if before.offsets else "consistent"
         return DiagnosisReport(**common, ranking=(), named_effect=None, augmented=None,
-                               after=None, gap_after=gap, verdict="consistent")  # fmt: skip
+                               after=None, gap_after=gap, verdict=verdict)  # fmt: skip
     ranking_base = base if fast is simulator else fit_base(problem, fast, base.w)
     ranking = tuple(
         rank_effects(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from susp_bo.discrepancy.detection import benjamini_hochberg, gap_metrics, predictive_check
 
@@ -42,3 +43,29 @@ def test_a_band_of_excess_energy_is_flagged_with_its_edges_and_sign(
     assert band.residual_db > 3.0
     gap = gap_metrics(detection, detection.flagged)
     assert gap["n_bins"] == 4 and gap["value"] > 25.0
+
+
+def test_a_whole_channel_level_error_is_reported_a_band_or_a_small_level_is_not(
+    rng: np.random.Generator,
+) -> None:
+    """A 3 dB gain on channel b: few (or no) bins pass BH on their own, the channel does;
+    a strong band moves the channel's mean but not its median; 0.5 dB is below the floor."""
+    nu, channels, n_f = 3, ("a", "b", "c"), 40
+    edges = np.geomspace(1.0, 30.0, n_f + 1)
+    sigma = np.array([0.4, 0.4, 0.4])
+    truth = rng.normal(0.0, 0.01, (nu, 3, n_f))
+    measured = truth.copy()
+    measured[:, 1] += np.log(10 ** (3 / 20))  # 3 dB on every bin of b
+    measured[:, 2, 10:18] += 1.5  # a strong band on c (8 of 40 bins)
+    predicted = truth[None] + rng.normal(0, 0.01, (5, nu, 3, n_f))
+    detection = predictive_check(measured, predicted, sigma, channels, edges, q=0.05)
+    assert not any(b.channel == "b" for b in detection.bands)  # |Z| ≈ 1.5 per bin
+    assert [o.channel for o in detection.offsets] == ["b"]
+    assert detection.offsets[0].offset_db == pytest.approx(3.0, abs=0.05)
+    assert detection.offsets[0].z > 5 and detection.offsets[0].p_value < 1e-6
+    assert any(b.channel == "c" for b in detection.bands)
+    small = truth.copy()
+    small[:, 1] += np.log(10 ** (0.5 / 20))
+    # σ such that the channel statistic passes (≈ 9) while no bin does (|Z| ≈ 1.5): the floor
+    quiet = predictive_check(small, predicted, np.full(3, 0.066), channels, edges, q=0.05)
+    assert not quiet.bands and not quiet.offsets
