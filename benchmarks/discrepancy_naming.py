@@ -55,6 +55,18 @@ cases per second (machine shared with a demo run). The probe case the rule was m
 (a mid-car vertical accelerometer on an 11 Hz, 6 % damped bracket, ν = 3, noise 0.02,
 seeds 2–4; named ``carbody_bending`` before) is ``unexplained_disagreement`` on 3/3.
 
+Session 23 (27 Nov 2026), the paired detection scale on the fast path
+(``--quick --parts names outside null --output-error paired``; each run judged against
+its own track on the Welch sensor-noise variance plus a robust per-channel model error,
+refits reweighted to it; :mod:`susp_bo.discrepancy.detection_scale`): **10/10 named and
+accepted**, mean Z² over all bins after the named effect 0.80–0.89 (≈ 1: the augmented
+model is consistent with B, where σ_B's gap ratios say only "smaller"); out of library
+**0/10 named, 10/10 flagged**; null **1/6** data sets with a flag (one bin; BH's q =
+0.05 bounds the rate, 6 sets cannot tell 1/6 from 1/20). 1299 s wall, 49.9 s a case
+(refits 2–4× dearer, machine shared with an outside probe). ``susp-bo diagnose`` keeps
+σ_B: on PyBullet data ranked on the linearised rig the paired scale flags the
+simulators' own 0.2–1.9 dB differences (module docstring of ``detection_scale``).
+
 Speed, fast path vs command line (same machine, same session, load 2–7): the fast path
 does 0.065 cases/s on named cases (one case = synthesis + base refit + check + ranking
 of 5 candidates + augmented refit, linearised rig). The command-line chain does one case

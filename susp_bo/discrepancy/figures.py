@@ -90,12 +90,19 @@ def before_after_figure(
     image = _heat_map(axes[1], after, edges, title, limit)
     fig.colorbar(image, ax=axes[:2], label="Z (+: model too little energy)")
     caption = "gap: mean Z² on the bins flagged before (≈ 1 or less: consistent with B)"
+    if report.before.offsets:  # a level error shows as a uniform row: say it is one
+        caption += "; whole channel level off: " + ", ".join(
+            f"{o.channel} {o.offset_db:+.1f} dB" for o in report.before.offsets
+        )
     if note:
         caption = f"{note} — {caption}"
     fig.suptitle(caption, fontsize=9, color="C3" if note else "0.2")
+    channels = report.problem.spec.channels
     worst = (
-        report.problem.spec.channels.index(report.before.bands[0].channel)
+        channels.index(report.before.bands[0].channel)
         if report.before.bands
+        else channels.index(report.before.offsets[0].channel)
+        if report.before.offsets
         else 0
     )
     f = report.before.frequencies_hz

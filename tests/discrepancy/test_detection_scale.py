@@ -16,6 +16,7 @@ from susp_bo.discrepancy.detection_scale import (
     robust_model_error_variance,
     unpaired_scale,
 )
+from susp_bo.discrepancy.figures import before_after_figure
 from susp_bo.discrepancy.scenarios import synthesize_problem
 from susp_bo.discrepancy.workflow import WorkflowSettings, fit_base, run_workflow
 
@@ -136,6 +137,14 @@ def test_a_whole_channel_gain_error_is_found_on_the_paired_scale(
         sentence = reports["unpaired"].sentence()
         assert sentence.startswith("unexplained_disagreement: the whole level of 1 channel(s)")
         assert f"{channel} +" in sentence and "gain" in sentence
+        figure = before_after_figure(reports["unpaired"])  # the uniform row is named a level
+        try:
+            assert f"whole channel level off: {channel} +" in figure._suptitle.get_text()
+            assert figure.axes[2].get_title() == channel
+        finally:
+            import matplotlib.pyplot as plt
+
+            plt.close(figure)
 
 
 def test_paired_scale_checks_its_inputs(null_problems) -> None:
