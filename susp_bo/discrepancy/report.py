@@ -214,7 +214,8 @@ def offsets_sentence(offsets: tuple[ChannelOffset, ...]) -> str:
     return (
         f"the whole level of {len(offsets)} channel(s) differs from the model by "
         f"{MIN_CHANNEL_OFFSET_DB:g} dB or more: {listed}. No library effect shifts one "
-        "channel's level across its band: check that sensor's gain, units and calibration "
-        "sheet, and its mounting, before reading the model (or the parameters calibrated "
-        "with it) as wrong."
+        "channel's level across its band: check that sensor's gain, units, calibration "
+        "sheet and mounting first (the parameters calibrated with it are biased as long as "
+        "it is off); if they are right, the model misses something that scales this "
+        "channel."
     )
