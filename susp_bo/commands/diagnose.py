@@ -62,6 +62,7 @@ from typing import Any
 
 import numpy as np
 
+from susp_bo import __version__
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import output_folder
 from susp_bo.json_files import json_ready, write_json
@@ -126,6 +127,41 @@ def _fit_from_result(study: Any, payload: dict[str, Any], result_file: Path) -> 
         covariance_unit=np.diag((sd / span) ** 2),
         n_evaluations=0,
     )
+
+
+def augmented_result_payload(
+    result: Any, spec: Any, start: np.ndarray, base_w: np.ndarray, study: Any
+) -> dict[str, Any]:
+    """``DIR/augmented/result.json``: the recalibration's result as ``calibrate`` writes one.
+
+    Args:
+        result: the recalibration's :class:`~susp_bo.calibration.result.CalibrationResult`.
+        spec: the augmented rig (its calibration entries give the units).
+        start: (q,) the ranking's refit the recalibration was warm-started from.
+        base_w: (n_base,) the base calibration's joint MAP.
+        study: the base study (rig, data, output error and seed of the context).
+
+    Returns:
+        The calibration's keys of ``result.json`` (:meth:`CalibrationResult.to_dict`: the
+        same names, layout — bounds as (q x 2) pairs — and meaning, its own reliability
+        verdict), the units, the study's context, and ``warm_start`` (refit, base MAP).
+    """
+    unit = {c.name: c.unit for c in spec.calibration}
+    return {
+        "parameters": list(result.names),
+        "units": [unit.get(name, "") for name in result.names],
+        **result.to_dict(),
+        "warm_start": {
+            "ranking_refit": np.asarray(start, dtype=np.float64).tolist(),
+            "base_map": np.asarray(base_w, dtype=np.float64).tolist(),
+            "window": [[float(lo), float(hi)] for lo, hi in np.asarray(result.bounds).T],
+        },
+        "rig": spec.name,
+        "data": str(study.config.data),
+        "nu": len(study.runs),
+        "seed": study.config.seeds.calibration,
+        "version": __version__,
+    }
 
 
 def refit_window(
@@ -237,24 +273,9 @@ def _study_recalibration(
         verdicts.append(verdict)
         span = bounds[1] - bounds[0]
         sd = np.maximum(np.asarray(summary["sd"], dtype=np.float64), 1e-9 * span)
-        (folder / "result.json").write_text(
-            json.dumps(
-                {
-                    "parameters": list(names),
-                    "bounds": bounds.tolist(),
-                    "warm_start": {
-                        "ranking_refit": start.tolist(),
-                        "base_map": base_w.tolist(),
-                        "window": bounds.tolist(),
-                    },
-                    "n_evaluations": int(result.n_evaluations),
-                    **json_ready(summary),
-                    # the recalibration's own verdict (its budget is often small: say so)
-                    "reliability": verdict,
-                },
-                indent=2,
-            )
-            + "\n"
+        write_json(
+            folder / RESULT_NAME,
+            json_ready(augmented_result_payload(result, spec, start, base_w, study)),
         )
         return Fit(
             spec=spec,

@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from susp_bo.cli import main
+from susp_bo.json_files import json_ready
 
 
 def _result_dir(tmp_path: Path, payload: object) -> Path:
@@ -91,3 +93,43 @@ def test_a_study_file_that_is_not_toml_is_refused_even_when_not_trusted(
     assert f"RESULT_DIR: {study}: not valid TOML" in error and "Traceback" not in error
     assert "--resume" not in error
     assert not (tmp_path / "o").exists()
+
+
+def test_the_augmented_result_json_has_calibrates_layout() -> None:
+    """DIR/augmented/result.json was written by hand: posterior summary keys (mean, sd,
+    r_hat) where calibrate writes posterior_mean/posterior_sd/mcmc, bounds as (2 x q) rows
+    where calibrate writes (q x 2) pairs, and no units."""
+    from types import SimpleNamespace
+
+    from susp_bo.calibration.loop import calibrate
+    from susp_bo.calibration.settings import CalibrationSettings
+    from susp_bo.calibration.test_functions import TARGETS
+    from susp_bo.commands.diagnose import augmented_result_payload
+
+    target = TARGETS["banana_2d"]()
+    settings = CalibrationSettings(
+        seed=0, max_evaluations=14, batch_size=2, mcmc_chains=4, mcmc_warmup=50,
+        mcmc_samples=50, candidate_count=32, check_points=0,
+    )  # fmt: skip
+    result = calibrate(target, target.bounds, target.names, settings, progress=False)
+    units = {target.names[0]: "N/m", target.names[1]: "Hz"}
+    spec = SimpleNamespace(
+        name="augmented_rig",
+        calibration=[SimpleNamespace(name=n, unit=u) for n, u in units.items()],
+    )
+    study = SimpleNamespace(
+        config=SimpleNamespace(data=Path("runs"), seeds=SimpleNamespace(calibration=3)),
+        runs=(1, 2, 3),
+    )
+    start, base_w = np.array([0.1, 0.2]), np.array([0.3])
+    payload = json.loads(
+        json.dumps(json_ready(augmented_result_payload(result, spec, start, base_w, study)))
+    )
+    calibration = json.loads(json.dumps(json_ready(result.to_dict())))
+    assert {k: payload[k] for k in calibration} == calibration  # calibrate's keys and layout
+    assert payload["units"] == ["N/m", "Hz"] and payload["rig"] == "augmented_rig"
+    assert payload["bounds"] == [[float(lo), float(hi)] for lo, hi in target.bounds.T]
+    assert "posterior_mean" in payload and "mean" not in payload and "r_hat" not in payload
+    assert payload["warm_start"]["ranking_refit"] == [0.1, 0.2]
+    assert payload["warm_start"]["base_map"] == [0.3]
+    assert payload["nu"] == 3 and payload["seed"] == 3 and payload["data"] == "runs"
