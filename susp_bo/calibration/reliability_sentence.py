@@ -12,7 +12,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 _ADVICE = {
-    "budget_too_small": "rerun with --budget {minimum} or more",
+    "budget_too_small": "rerun with --resume --budget {minimum} or more (the evaluations "
+    "already made are reused)",
     "not_converged": "rerun with --resume --budget {more}",
     "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",

@@ -10,6 +10,7 @@ part that is taken off the measured accelerations before their spectra.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -173,22 +174,57 @@ def check_runs_rig(runs: tuple[MeasuredRun, ...], rig: str, folder: Path) -> Non
         )
 
 
-def store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
-    def short(text: str) -> str:
-        return text if len(text) <= 40 else text[:37] + "..."
+def fingerprint_change(stored: str, current: str, limit: int = 60) -> str:
+    """Where two fingerprint values differ, readably: the first differing key of two JSON
+    objects with its two values, "the same entries in another order" for two permutations,
+    else both texts from just before their first differing character."""
 
+    def short(text: str) -> str:
+        return text if len(text) <= limit else text[: limit - 3] + "..."
+
+    try:
+        old, new = json.loads(stored), json.loads(current)
+    except (ValueError, TypeError):
+        old = new = None
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in sorted(set(old) | set(new), key=str):
+            if old.get(key, "(absent)") != new.get(key, "(absent)"):
+                before = json.dumps(old[key]) if key in old else "(absent)"
+                after = json.dumps(new[key]) if key in new else "(absent)"
+                return f"{key}: stored {short(before)}, now {short(after)}"
+    if (
+        isinstance(old, list)
+        and isinstance(new, list)
+        and old != new
+        and sorted(map(str, old)) == sorted(map(str, new))
+    ):
+        return (
+            f"the same entries in another order (stored {short(json.dumps(old))}, now "
+            f"{short(json.dumps(new))}): the order must be the stored one"
+        )
+    start = next(
+        (i for i, (a, b) in enumerate(zip(stored, current)) if a != b),
+        min(len(stored), len(current)),
+    )
+    start = max(0, start - 12)
+    lead = "..." if start else ""
+    return f"stored {lead}{short(stored[start:])!r}, now {lead}{short(current[start:])!r}"
+
+
+def store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
     what = {
-        "rig": "the rig (or its parameter values)",
+        "rig": "the rig (its file's contents or its parameter values)",
         "data": "the measured data",
         "tracks": "the measured runs",
         "parameter_names": "the calibrated parameters",
-        "output_error": "the output error",
+        "output_error": "the output error ([output_error] model, sigma, correlation length)",
         "sensor_noise_m_s2": "the sensor noise",
     }.get(error.key, repr(error.key))
     return StudyError(
-        f"--resume: {out} holds the evaluations of another study: {what} differs "
-        f"(stored {short(error.stored)!r}, now {short(error.current)!r}); resume with the "
-        "same rig, data and parameters, or give a new output folder"
+        f"--resume: {out} holds the evaluations of another study: {what} changed "
+        f"({fingerprint_change(str(error.stored), str(error.current))}); resume with the "
+        "same rig, data, parameters (in the same order) and output error, or give a new "
+        "output folder"
     )
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import tomllib
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +34,7 @@ from susp_bo.calibration.study_inputs import (
 )
 from susp_bo.data.measured import MeasuredRun, load_runs
 from susp_bo.data.run_validation import validate_run
-from susp_bo.output_folder import RESULT_NAME, check_output_folder
+from susp_bo.output_folder import CONFIG_NAME, RESULT_NAME, check_output_folder
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.store_fingerprint import study_fingerprint
@@ -140,11 +141,23 @@ def check_resume_budget(config: StudyConfig) -> None:
         return
     budget = config.budget.max_evaluations
     if budget < done:
+        try:  # the budget it ran with (a study may stop before its budget, e.g. converged)
+            ran = tomllib.loads((config.out / CONFIG_NAME).read_text(encoding="utf-8"))
+            ran_with = int(ran["budget"]["max_evaluations"])
+        except (OSError, ValueError, TypeError, KeyError):
+            ran_with = None
+        same = (
+            f"{ran_with}, the budget it ran with, gives the same result again; any other "
+            "budget changes the search and gives another result"
+            if ran_with is not None and ran_with >= done
+            else "a budget other than the one it ran with changes the search and gives "
+            "another result"
+        )
         raise StudyError(
             f"--budget (budget.max_evaluations): {budget} is below the {done} likelihood "
             f"evaluations of the finished result in {config.out / RESULT_NAME}; a resume only "
-            f"extends a study: give {done} or more (the same {done} rewrites the same result), "
-            "or calibrate into another output folder to see what a smaller budget gives"
+            f"extends a study: give {done} or more ({same}), or calibrate into another output "
+            "folder to see what a smaller budget gives"
         )
 
 

@@ -28,4 +28,7 @@ def test_not_trusted_sentence_gives_the_first_reason_its_advice_and_the_others()
     small = sentence(
         ({"code": "budget_too_small", "message": "b"},), {"budget": 40, "minimum_budget": 51}
     )
-    assert small == "Not trusted: b; rerun with --budget 51 or more."
+    assert small == (  # --resume: a plain rerun into the folder is refused (it holds a study)
+        "Not trusted: b; rerun with --resume --budget 51 or more (the evaluations already "
+        "made are reused)."
+    )

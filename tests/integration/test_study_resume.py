@@ -14,6 +14,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -144,6 +145,12 @@ def test_a_resume_below_the_finished_evaluations_is_refused(
     assert refused.returncode == 2, refused.stderr[-2000:]
     assert "Traceback" not in refused.stderr
     assert f"--budget (budget.max_evaluations): {done - 2} is below the {done}" in refused.stderr
+    # it said "the same {done} rewrites the same result": another budget is another search
+    ran_with = tomllib.loads((finished_copy / "study.toml").read_text())["budget"]
+    assert f"{ran_with['max_evaluations']}, the budget it ran with, gives the same result" in (
+        " ".join(refused.stderr.split())
+    )
+    assert "rewrites the same result" not in refused.stderr
     assert _snapshot(finished_copy) == before  # result, draws, figures and store as they were
 
 
