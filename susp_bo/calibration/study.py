@@ -69,6 +69,7 @@ from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect, one_blas_thread
 from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
+from susp_bo.output_lock import OutputFolderBusy, hold_output_folder, refuse_if_busy
 from susp_bo.rig.spec import RigSpec
 from susp_bo.store import EvaluationStore, StoreFileError, StoreMismatchError
 from susp_bo.study_config import StudyConfig
@@ -230,89 +231,100 @@ def run_study(
     Raises:
         StudyError: bad inputs, before any simulation.
     """
+    try:  # first: a second run into a busy folder is told so, not to --resume into it
+        refuse_if_busy(config.out)
+    except OutputFolderBusy as error:
+        raise StudyError(str(error)) from None
     study = prepare_study(config, resume=resume)
     if resume:
         check_resume_budget(config)
     out = config.out
-    with ExitStack() as stack:
-        # the executor first: a scheduler that cannot be reached leaves the folder untouched
-        executor = stack.enter_context(
-            make_executor(workers=config.executor.workers, scheduler=config.executor.scheduler)
-        )
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as error:  # e.g. under /proc, or no permission
-            raise StudyError(
-                f"out: {str(out)!r} cannot be created ({error.strerror or error}); expected a "
-                "folder that exists or can be created, and can be written in"
-            ) from None
-        try:  # before anything is written: a refused resume leaves the folder as it was
-            store = stack.enter_context(EvaluationStore(out / STORE_NAME, store_fingerprint(study)))
-        except StoreMismatchError as error:
-            raise store_mismatch(out, error) from None
-        except StoreFileError as error:
-            raise StudyError(
-                f"out: {error}; it is left as it was: move it away to start this study afresh "
-                "(its evaluations cannot be read back), or choose another output folder"
-            ) from None
-        (out / CONFIG_NAME).write_text(config.with_absolute_paths().to_toml())
-        log = _logger(out)
-        log.info(
-            "study %s: rig %s, %d runs, parameters %s",
-            out,
-            study.spec.name,
-            len(study.runs),
-            study.names,
-        )
-        started = time.perf_counter()
-        evaluator = study_evaluator(study, store, executor, progress=progress)
-
-        def report(item: IterationReport) -> None:
-            line = (
-                f"iteration {item.iteration} [{item.phase}]: "
-                f"best log L {item.best_log_likelihood:.3f}, criterion {item.criterion:.3g}, "
-                f"evaluations {item.n_evaluations}, simulator runs {evaluator.simulations_run} "
-                f"(+{evaluator.simulations_reused} reused)"
+    with ExitStack() as held:  # the folder lock: to the last file written
+        with ExitStack() as stack:
+            # the executor first: a scheduler that cannot be reached leaves the folder untouched
+            executor = stack.enter_context(
+                make_executor(workers=config.executor.workers, scheduler=config.executor.scheduler)
             )
+            try:
+                out.mkdir(parents=True, exist_ok=True)
+            except OSError as error:  # e.g. under /proc, or no permission
+                raise StudyError(
+                    f"out: {str(out)!r} cannot be created ({error.strerror or error}); expected a "
+                    "folder that exists or can be created, and can be written in"
+                ) from None
+            try:  # before anything is written: a refused resume leaves the folder as it was
+                store = stack.enter_context(
+                    EvaluationStore(out / STORE_NAME, store_fingerprint(study))
+                )
+            except StoreMismatchError as error:
+                raise store_mismatch(out, error) from None
+            except StoreFileError as error:
+                raise StudyError(
+                    f"out: {error}; it is left as it was: move it away to start this study afresh "
+                    "(its evaluations cannot be read back), or choose another output folder"
+                ) from None
+            try:  # one writer per folder, from here to the last file written
+                held.enter_context(hold_output_folder(out))
+            except OutputFolderBusy as error:
+                raise StudyError(str(error)) from None
+            (out / CONFIG_NAME).write_text(config.with_absolute_paths().to_toml())
+            log = _logger(out)
+            log.info(
+                "study %s: rig %s, %d runs, parameters %s",
+                out,
+                study.spec.name,
+                len(study.runs),
+                study.names,
+            )
+            started = time.perf_counter()
+            evaluator = study_evaluator(study, store, executor, progress=progress)
+
+            def report(item: IterationReport) -> None:
+                line = (
+                    f"iteration {item.iteration} [{item.phase}]: "
+                    f"best log L {item.best_log_likelihood:.3f}, criterion {item.criterion:.3g}, "
+                    f"evaluations {item.n_evaluations}, simulator runs {evaluator.simulations_run} "
+                    f"(+{evaluator.simulations_reused} reused)"
+                )
+                log.info(line)
+                if progress:
+                    print(line, file=sys.stderr)
+
+            settings = calibration_settings(config)
+            if local_after_design and settings.local_search:
+                settings = dataclasses.replace(settings, max_ego_fraction=0.0)
+            result = calibrate(
+                evaluator,
+                study.bounds,
+                study.names,
+                settings,
+                progress=progress,
+                on_iteration=report,
+                expected_at_truth=expected_log_likelihood_at_truth(study),
+                design=design,
+            )
+            n_simulations = store.count()
+        if result.check is not None:
+            line = result.check.line()
+            if result.check.verdict != "ok":
+                line += (
+                    " — the posterior may be misshapen; rerun with a larger budget"
+                    " (susp-bo calibrate ... --resume --budget N: the design and the early"
+                    " iterations come from the store, not the simulator)"
+                )
             log.info(line)
             if progress:
                 print(line, file=sys.stderr)
-
-        settings = calibration_settings(config)
-        if local_after_design and settings.local_search:
-            settings = dataclasses.replace(settings, max_ego_fraction=0.0)
-        result = calibrate(
-            evaluator,
-            study.bounds,
-            study.names,
-            settings,
-            progress=progress,
-            on_iteration=report,
-            expected_at_truth=expected_log_likelihood_at_truth(study),
-            design=design,
+        payload = json_ready(
+            result_payload(study, result, n_simulations, time.perf_counter() - started)
+            | ({"warm_start": design_note or {}} if design is not None else {})
         )
-        n_simulations = store.count()
-    if result.check is not None:
-        line = result.check.line()
-        if result.check.verdict != "ok":
-            line += (
-                " — the posterior may be misshapen; rerun with a larger budget"
-                " (susp-bo calibrate ... --resume --budget N: the design and the early"
-                " iterations come from the store, not the simulator)"
-            )
-        log.info(line)
-        if progress:
-            print(line, file=sys.stderr)
-    payload = json_ready(
-        result_payload(study, result, n_simulations, time.perf_counter() - started)
-        | ({"warm_start": design_note or {}} if design is not None else {})
-    )
-    save_samples(out / SAMPLES_NAME, result.samples)  # before result.json: "finished" = both
-    write_json(out / RESULT_NAME, payload)
-    write_figures(study, result, out)
-    log.info("result written: %s", out / RESULT_NAME)
-    if result.reliability is not None:  # the commands print it last, under their summary
-        log.info("reliability: %s", result.reliability.sentence)
+        save_samples(out / SAMPLES_NAME, result.samples)  # before result.json: "finished" = both
+        write_json(out / RESULT_NAME, payload)
+        write_figures(study, result, out)
+        log.info("result written: %s", out / RESULT_NAME)
+        if result.reliability is not None:  # the commands print it last, under their summary
+            log.info("reliability: %s", result.reliability.sentence)
     return payload, result
 
 

@@ -154,6 +154,37 @@ def test_a_resume_below_the_finished_evaluations_is_refused(
     assert _snapshot(finished_copy) == before  # result, draws, figures and store as they were
 
 
+def test_a_folder_another_process_writes_into_is_refused(
+    finished_copy: Path, calibrate_command
+) -> None:
+    """Two runs into one --out both ran on one store and left study.toml of one run beside
+    result.json of the other (outside probe, session 23); a fresh run was told to --resume."""
+    hold = (
+        "import sys, time; from pathlib import Path; "
+        "from susp_bo.output_lock import hold_output_folder\n"
+        "with hold_output_folder(Path(sys.argv[1])):\n"
+        "    print('held', flush=True); time.sleep(120)\n"
+    )
+    holder = subprocess.Popen(
+        [sys.executable, "-c", hold, str(finished_copy)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        before = _snapshot(finished_copy)
+        for extra in (["--resume", "--budget", "40"], []):
+            refused = calibrate_command(
+                finished_copy / "study.toml", "--out", str(finished_copy), *extra
+            )
+            assert refused.returncode == 2, refused.stderr[-2000:]
+            assert "Traceback" not in refused.stderr
+            assert f"is in use by process {holder.pid}" in refused.stderr
+            assert "resume it with --resume" not in refused.stderr
+            assert _snapshot(finished_copy) == before
+    finally:
+        holder.kill()
+        holder.communicate()
+
+
 def test_a_damaged_store_is_named_and_left_as_it_was(
     finished_copy: Path, calibrate_command
 ) -> None:
