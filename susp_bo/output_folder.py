@@ -10,6 +10,8 @@ RESULT_NAME = "result.json"
 CONFIG_NAME = "study.toml"
 LOG_NAME = "study.log"
 SAMPLES_NAME = "posterior_samples.npy"
+FIGURE_NAMES = ("fig1_parameters.png", "fig2_marginals.png", "pairs.png")
+"""The posterior figures of a result (:func:`susp_bo.plots.posterior_figures`)."""
 
 
 def check_output_folder(path: str | Path, label: str = "--out") -> Path:

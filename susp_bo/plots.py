@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo.calibration.posterior import PosteriorSummary
+from susp_bo.output_folder import FIGURE_NAMES
 from susp_bo.posterior_plots.common import (
     LABEL_ACCEPTABLE,
     LABEL_ADMISSIBLE,
@@ -73,9 +74,7 @@ __all__ = [
     "verdict_title",
 ]
 
-FIG1_NAME = "fig1_parameters.png"
-FIG2_NAME = "fig2_marginals.png"
-PAIRS_NAME = "pairs.png"
+FIG1_NAME, FIG2_NAME, PAIRS_NAME = FIGURE_NAMES
 
 
 def plot_parameters(

@@ -68,7 +68,13 @@ from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect, one_blas_thread
-from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
+from susp_bo.output_folder import (
+    CONFIG_NAME,
+    FIGURE_NAMES,
+    LOG_NAME,
+    RESULT_NAME,
+    SAMPLES_NAME,
+)
 from susp_bo.output_lock import OutputFolderBusy, hold_output_folder, refuse_if_busy
 from susp_bo.rig.spec import RigSpec
 from susp_bo.store import EvaluationStore, StoreFileError, StoreMismatchError
@@ -319,6 +325,11 @@ def run_study(
             result_payload(study, result, n_simulations, time.perf_counter() - started)
             | ({"warm_start": design_note or {}} if design is not None else {})
         )
+        # a resume replaces a finished result: the old one goes first, so that a run killed
+        # while writing leaves an unfinished folder (resume it), never a result.json beside
+        # draws or figures of another run (figures titled with another verdict)
+        for name in (RESULT_NAME, *FIGURE_NAMES):
+            (out / name).unlink(missing_ok=True)
         save_samples(out / SAMPLES_NAME, result.samples)  # before result.json: "finished" = both
         write_json(out / RESULT_NAME, payload)
         write_figures(study, result, out)

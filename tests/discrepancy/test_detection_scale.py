@@ -106,7 +106,7 @@ def test_a_paired_refit_reaches_the_maximum_on_the_paired_scale(null_problems, l
     assert cost(sigma_b_fit.w) > cost(truth) + 20.0
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0])  # seed 1 too when measured (README): 20 s a seed
 def test_a_whole_channel_gain_error_is_found_on_the_paired_scale(
     null_problems, linear_simulator, seed: int
 ) -> None:

@@ -225,3 +225,36 @@ def test_an_out_that_cannot_be_created_is_named(
     refused = calibrate_command(config)
     assert refused.returncode == 2, refused.stderr[-2000:]
     assert "out: '/proc/susp_bo_out' cannot be created" in refused.stderr
+
+
+def test_a_resume_killed_while_writing_leaves_no_result_of_another_run(
+    finished_copy: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Files were written draws → result.json → figures over the old ones: a resume killed
+    in between left result.json saying `trusted` beside figures titled NOT TRUSTED (outside
+    probe, session 23). Now the old result and figures go first: a kill leaves an unfinished
+    folder, and the next resume writes the same result again."""
+    import dataclasses
+
+    import susp_bo.calibration.study as study_module
+    from susp_bo.output_folder import FIGURE_NAMES
+    from susp_bo.study_config import load_study_config
+
+    before = json.loads((finished_copy / "result.json").read_text())
+    assert all((finished_copy / name).is_file() for name in FIGURE_NAMES)
+    config = dataclasses.replace(load_study_config(finished_copy / "study.toml"), out=finished_copy)
+
+    def killed(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt  # as if killed right after the draws were written
+
+    with monkeypatch.context() as patch:
+        patch.setattr(study_module, "write_json", killed)
+        with pytest.raises(KeyboardInterrupt):
+            study_module.run_study(config, resume=True, progress=False)
+    assert not (finished_copy / "result.json").exists()  # unfinished, not a mixed result
+    assert not any((finished_copy / name).exists() for name in FIGURE_NAMES)
+    payload, _ = study_module.run_study(config, resume=True, progress=False)
+    assert {k: v for k, v in payload.items() if k != "wall_time_s"} == {
+        k: v for k, v in before.items() if k != "wall_time_s"
+    }
+    assert all((finished_copy / name).is_file() for name in FIGURE_NAMES)
