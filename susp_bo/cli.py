@@ -180,6 +180,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+INTERRUPTED_HINTS = {
+    "calibrate": "; the likelihood evaluations already stored are kept: run the same command "
+    "with --resume to continue (without --resume if it stopped before the first was stored)",
+    "monitor": "; finished campaigns are kept and the interrupted one continues from its "
+    "stored evaluations: run the same command again",
+}
+"""What to do after Ctrl-C, per command (where work was kept)."""
+
+
 def _user_error_types() -> tuple[type[BaseException], ...]:
     """The exceptions that mean bad input (exit code 2, one message, no traceback).
 
@@ -236,7 +245,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"susp-bo {args.command}: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"susp-bo {args.command}: interrupted", file=sys.stderr)
+        print(f"susp-bo {args.command}: interrupted{INTERRUPTED_HINTS.get(args.command, '')}",
+              file=sys.stderr)  # fmt: skip
         return 130
 
 

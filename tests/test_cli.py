@@ -79,3 +79,20 @@ def test_an_uninformative_design_is_a_user_error_not_a_traceback() -> None:
     from susp_bo.cli import _user_error_types
 
     assert issubclass(UninformativeDesignError, _user_error_types())
+
+
+def test_ctrl_c_says_what_was_kept_and_how_to_continue(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C printed only "interrupted": the user was not told the store is kept, nor to
+    resume (outside probe, session 23)."""
+    import susp_bo.commands.calibrate as calibrate_command
+
+    def interrupted(args: object) -> int:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(calibrate_command, "run_calibrate", interrupted)
+    assert main(["calibrate", "study.toml"]) == 130
+    err = capsys.readouterr().err
+    assert err.startswith("susp-bo calibrate: interrupted; the likelihood evaluations")
+    assert "with --resume to continue" in err and "Traceback" not in err

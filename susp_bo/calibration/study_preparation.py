@@ -188,7 +188,10 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
             "or choose another output folder"
         )
     if resume and not store_path.exists():
-        raise StudyError(f"--resume: {store_path} does not exist; nothing to resume")
+        raise StudyError(
+            f"--resume: {store_path} does not exist; nothing to resume (a run interrupted "
+            "before its first evaluation was stored left none): run without --resume"
+        )
     try:
         runs = tuple(load_runs(config.data, channels=spec.channels))
         for name, run in zip(run_names(runs, config.data), runs):

@@ -71,7 +71,7 @@ class CalibrationParameter:
     acceptable: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
-        where = f"CalibrationParameter {self.name!r}"
+        where = f"calibration parameter {self.name}"  # no class name in a user's message
         for key in ("lower", "upper", "reference"):
             number = require_number(f"{where}.{key}", getattr(self, key))
             if not math.isfinite(number):
@@ -122,7 +122,7 @@ class CalibrationParameter:
             ValueError: the parameter has no acceptable domain.
         """
         if self.acceptable is None:
-            raise ValueError(f"CalibrationParameter {self.name!r}: no acceptable domain")
+            raise ValueError(f"calibration parameter {self.name}: no acceptable domain")
         lo, hi = self.acceptable
         values = np.asarray(values, dtype=np.float64)
         return (values < lo) | (values > hi)

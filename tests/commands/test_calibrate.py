@@ -80,7 +80,8 @@ def test_resume_without_a_store_is_refused(
         ["calibrate", "hst_trailer", str(data_dir), "--out", str(tmp_path / "o"), "--resume"]
     )
     assert code == 2
-    assert "nothing to resume" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "nothing to resume" in err and "run without --resume" in err
 
 
 @pytest.mark.parametrize(("budget", "design"), [(51, 35), (55, 39), (56, 40), (200, 40)])

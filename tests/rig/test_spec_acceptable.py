@@ -63,7 +63,16 @@ def test_a_bad_acceptable_domain_names_the_file_the_parameter_the_values_and_the
         parse_rig(document, source="my_rig.toml")
     text = str(caught.value)
     assert text.startswith("my_rig.toml: ")
-    assert "secondary_vertical_damping" in text and "acceptable" in text
+    assert "secondary_vertical_damping.acceptable" in text
+    assert "CalibrationParameter" not in text  # the user wrote a rig file, not a class
+
+
+def test_a_bad_reference_names_the_parameter_not_a_class() -> None:
+    document = _document()
+    _entry(document, "secondary_vertical_damping")["reference"] = 1.0e6
+    with pytest.raises(ValueError, match=r"secondary_vertical_damping\.reference: got") as caught:
+        parse_rig(document, source="my_rig.toml")
+    assert "CalibrationParameter" not in str(caught.value)
 
 
 def test_outside_acceptable_is_the_complement_of_the_closed_band() -> None:
