@@ -182,7 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 INTERRUPTED_HINTS = {
     "calibrate": "; the likelihood evaluations already stored are kept: run the same command "
-    "with --resume to continue (without --resume if it stopped before the first was stored)",
+    "with --resume to continue (without it only if no evaluations.sqlite was made yet)",
     "monitor": "; finished campaigns are kept and the interrupted one continues from its "
     "stored evaluations: run the same command again",
 }

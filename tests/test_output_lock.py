@@ -18,20 +18,25 @@ HOLD = (
 )
 
 
-def test_a_second_holder_is_refused_until_the_first_lets_go(tmp_path: Path) -> None:
+def test_this_process_may_hold_a_folder_again_and_lets_go_at_the_outer_end(
+    tmp_path: Path,
+) -> None:
     refuse_if_busy(tmp_path)  # no lock file yet: nothing to say
     with hold_output_folder(tmp_path):
         assert (tmp_path / LOCK_NAME).read_text().startswith("process ")
-        with pytest.raises(OutputFolderBusy, match=r"is in use by process \d+"):
-            refuse_if_busy(tmp_path)
-        with (
-            pytest.raises(OutputFolderBusy, match="choose another output folder"),
-            hold_output_folder(tmp_path),
-        ):
+        refuse_if_busy(tmp_path)  # held by this process: not busy for it
+        with hold_output_folder(tmp_path):  # demo holds it, its study takes it again
             pass
-    refuse_if_busy(tmp_path)  # released: free again
-    with hold_output_folder(tmp_path):
-        pass
+        assert _busy_for_another_process(tmp_path)  # still held after the inner block
+    assert not _busy_for_another_process(tmp_path)  # released at the outer end
+
+
+def _busy_for_another_process(folder: Path) -> bool:
+    check = (
+        "import sys; from pathlib import Path; from susp_bo.output_lock import refuse_if_busy\n"
+        "try:\n    refuse_if_busy(Path(sys.argv[1]))\nexcept ValueError:\n    sys.exit(3)\n"
+    )
+    return subprocess.run([sys.executable, "-c", check, str(folder)]).returncode == 3
 
 
 def test_another_process_holding_the_folder_is_named_and_its_death_frees_it(
@@ -44,6 +49,11 @@ def test_another_process_holding_the_folder_is_named_and_its_death_frees_it(
         assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
         with pytest.raises(OutputFolderBusy, match=rf"in use by process {holder.pid} "):
             refuse_if_busy(tmp_path)
+        with (  # retried for ~0.1 s, then refused
+            pytest.raises(OutputFolderBusy, match="then run yours again"),
+            hold_output_folder(tmp_path),
+        ):
+            pass
     finally:
         holder.kill()  # kill -9: the operating system releases the lock
         holder.communicate()  # waits, and closes the pipe

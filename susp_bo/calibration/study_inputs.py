@@ -174,14 +174,27 @@ def check_runs_rig(runs: tuple[MeasuredRun, ...], rig: str, folder: Path) -> Non
         )
 
 
+def _from_difference(stored: str, current: str, limit: int) -> tuple[str, str]:
+    """Both texts from just before their first differing character, at most ``limit`` long."""
+    start = next(
+        (i for i, (a, b) in enumerate(zip(stored, current)) if a != b),
+        min(len(stored), len(current)),
+    )
+    start = max(0, start - 12)
+    lead = "..." if start else ""
+
+    def cut(text: str) -> str:
+        text = text[start:]
+        return lead + (text if len(text) <= limit else text[: limit - 3] + "...")
+
+    return cut(stored), cut(current)
+
+
 def fingerprint_change(stored: str, current: str, limit: int = 60) -> str:
     """Where two fingerprint values differ, readably: the first differing key of two JSON
     objects with its two values, "the same entries in another order" for two permutations,
-    else both texts from just before their first differing character."""
-
-    def short(text: str) -> str:
-        return text if len(text) <= limit else text[: limit - 3] + "..."
-
+    else both texts from just before their first differing character (so that two long
+    values are never shown cut to the same text)."""
     try:
         old, new = json.loads(stored), json.loads(current)
     except (ValueError, TypeError):
@@ -191,24 +204,21 @@ def fingerprint_change(stored: str, current: str, limit: int = 60) -> str:
             if old.get(key, "(absent)") != new.get(key, "(absent)"):
                 before = json.dumps(old[key]) if key in old else "(absent)"
                 after = json.dumps(new[key]) if key in new else "(absent)"
-                return f"{key}: stored {short(before)}, now {short(after)}"
+                before, after = _from_difference(before, after, limit)
+                return f"{key}: stored {before}, now {after}"
     if (
         isinstance(old, list)
         and isinstance(new, list)
         and old != new
         and sorted(map(str, old)) == sorted(map(str, new))
     ):
+        before, after = _from_difference(json.dumps(old), json.dumps(new), limit)
         return (
-            f"the same entries in another order (stored {short(json.dumps(old))}, now "
-            f"{short(json.dumps(new))}): the order must be the stored one"
+            f"the same entries in another order (stored {before}, now {after}): the order "
+            "must be the stored one"
         )
-    start = next(
-        (i for i, (a, b) in enumerate(zip(stored, current)) if a != b),
-        min(len(stored), len(current)),
-    )
-    start = max(0, start - 12)
-    lead = "..." if start else ""
-    return f"stored {lead}{short(stored[start:])!r}, now {lead}{short(current[start:])!r}"
+    before, after = _from_difference(stored, current, limit)
+    return f"stored {before!r}, now {after!r}"
 
 
 def store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:

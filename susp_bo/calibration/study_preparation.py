@@ -189,8 +189,8 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         )
     if resume and not store_path.exists():
         raise StudyError(
-            f"--resume: {store_path} does not exist; nothing to resume (a run interrupted "
-            "before its first evaluation was stored left none): run without --resume"
+            f"--resume: {store_path} does not exist; nothing to resume (a run stopped before "
+            "it made its store left none): run without --resume"
         )
     try:
         runs = tuple(load_runs(config.data, channels=spec.channels))

@@ -28,6 +28,7 @@ from susp_bo.commands.calibrate import format_summary
 from susp_bo.data.measured import MeasuredRun, save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
+from susp_bo.output_lock import OutputFolderBusy, hold_output_folder
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.study_config import (
     BudgetConfig,
@@ -167,10 +168,22 @@ def run_demo(out: str | Path, smoke: bool = False, seed: int = 2024) -> int:
     recomputed); a folder holding other data or another study is refused before any work.
     """
     folder = checked_output_folder(out).resolve()
-    data = folder / "data"
     spec = load_rig_spec(DEMO_RIG)
     setting = demo_runs_setting(spec, smoke, seed)
-    missing = check_demo_folder(folder, setting, smoke)
+    check_demo_folder(folder, setting, smoke)  # refusals before anything is written
+    folder.mkdir(parents=True, exist_ok=True)
+    try:  # one writer from the runs' synthesis to the study's last file
+        with hold_output_folder(folder):
+            return _run_demo(folder, spec, setting, smoke, seed)
+    except OutputFolderBusy as error:
+        raise UsageError(str(error)) from None
+
+
+def _run_demo(
+    folder: Path, spec: RigSpec, setting: Mapping[str, Any], smoke: bool, seed: int
+) -> int:
+    data = folder / "data"
+    missing = check_demo_folder(folder, setting, smoke)  # again: nobody else writes now
     nu = setting["nu"]
     if missing:
         print(

@@ -21,7 +21,10 @@ its strength is the mean |Z| and the mean residual in dB (20 log10 e × Δ ln).
 level) moves every bin of a channel a little: on σ_B no single bin may pass BH (a
 3 dB gain gave mean Z ≈ +2.3 per bin and came back ``consistent``). So each channel is
 also tested as a whole: ``Z̄_c = √F · mean_f Z_cf`` (N(0, 1) for independent unit z's;
-conservative on σ_B, whose z's are far narrower), BH over the C channels at q, and a
+conservative on σ_B, whose z's are far narrower; not on the paired scale, where
+neighbouring bands correlate positively and its variance exceeds 1), BH over the C
+channels at q (a test of its own beside the bins' BH: the two together can reach a
+false-discovery rate of about 2q — the 1 dB floor is what keeps false alarms rare), and a
 channel is reported as a :class:`ChannelOffset` when it passes *and* the median over
 its bands of the run-mean residual is at least :data:`MIN_CHANNEL_OFFSET_DB` — the
 median, so that a strong band is not mistaken for a level shift, and a floor, because

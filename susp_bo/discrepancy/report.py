@@ -75,12 +75,22 @@ class DiagnosisReport:
         n_bins = int(self.before.z.size)
         if self.verdict == "consistent":
             return (
-                f"consistent: no bin of {n_bins} (channels × frequencies) and no channel's "
-                "whole level disagrees beyond the output error at the Benjamini–Hochberg "
-                f"level q = {self.before.q}; nothing to name."
+                f"consistent: no bin of {n_bins} (channels × frequencies) disagrees beyond "
+                f"the output error at the Benjamini–Hochberg level q = {self.before.q}, and "
+                f"no channel's whole level is {MIN_CHANNEL_OFFSET_DB:g} dB or more off (and "
+                "significant at q); nothing to name."
             )
-        if self.verdict == "unexplained_disagreement" and not self.before.bands:
-            return f"unexplained_disagreement: {offsets_sentence(self.before.offsets)}"
+        if self.verdict == "unexplained_disagreement" and self.before.offsets:
+            bands = self.before.bands
+            text = offsets_sentence(self.before.offsets)
+            if bands:  # flagged too, but no effect is ranked on top of a level error
+                text += (
+                    f" {len(bands)} band(s) are flagged as well (strongest "
+                    f"{describe_band(bands[0])}); no library effect was tried while a "
+                    "channel's level is off: check the sensor, then calibrate and diagnose "
+                    "again."
+                )
+            return f"unexplained_disagreement: {text}"
         return self._sentence() + (
             f" Also: {offsets_sentence(self.before.offsets)}" if self.before.offsets else ""
         )

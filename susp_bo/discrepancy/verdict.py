@@ -7,7 +7,9 @@ Verdicts (``discrepancy.json["verdict"]``, the command-line summary, the noteboo
   disagreement elsewhere (:class:`NamingRule`);
 * ``unexplained_disagreement`` — flagged bands that no library effect explains: the
   bands are listed with a sentence saying what kind of physics could produce them
-  (:func:`describe_band`); ``named_effect`` is null;
+  (:func:`describe_band`); or a channel whose whole level is off
+  (:func:`~.detection.channel_offsets`: a sensor's gain, units or mounting), where no
+  effect is ranked at all until the sensor is checked; ``named_effect`` is null;
 * ``calibration_not_trusted`` — the calibration's reliability verdict is not
   ``trusted`` (or absent): residuals of an unfinished fit are not model
   discrepancy, so none is reported (:func:`calibration_reliability`).

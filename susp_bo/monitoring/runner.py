@@ -67,6 +67,7 @@ from susp_bo.monitoring.campaign_results import (
 )
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
 from susp_bo.monitoring.warm_start import plan_warm_start
+from susp_bo.output_lock import OutputFolderBusy, refuse_if_busy
 from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import load_rig_spec
 from susp_bo.study_config import (
@@ -323,6 +324,10 @@ def monitor(
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
     for campaign in campaigns:  # every input checked before the first simulation
+        try:  # a campaign folder another process writes into: said now, not hours later
+            refuse_if_busy(configs[campaign.campaign_id].out)
+        except OutputFolderBusy as error:
+            raise MonitorError(f"campaign {campaign.campaign_id}: {error}") from None
         try:
             bounds[campaign.campaign_id] = check_campaign(
                 configs[campaign.campaign_id], campaign, status[campaign.campaign_id], names

@@ -17,5 +17,11 @@ def test_a_changed_fingerprint_shows_what_changed() -> None:
     order = fingerprint_change('["a_damping", "b_stiffness"]', '["b_stiffness", "a_damping"]')
     assert order.startswith("the same entries in another order") and "order must be" in order
     digest = fingerprint_change("sha256:" + "0" * 40 + "abc" * 10, "sha256:" + "0" * 40 + "abd")
-    assert digest == "stored ...'0000000000abcabcabcabcabcabcabcabcabcabc', now ...'0000000000abd'"
+    assert digest == "stored '...0000000000abcabcabcabcabcabcabcabcabcabc', now '...0000000000abd'"
+    # a long value differing past the cut was shown twice the same (second review)
+    long_old = json.dumps({"sigma": [0.1] * 12 + [0.1234]})
+    long_new = json.dumps({"sigma": [0.1] * 12 + [0.1235]})
+    assert fingerprint_change(long_old, long_new) == (
+        "sigma: stored ..., 0.1, 0.1234], now ..., 0.1, 0.1235]"
+    )
     assert fingerprint_change('["x"]', '["y"]') == "stored '[\"x\"]', now '[\"y\"]'"

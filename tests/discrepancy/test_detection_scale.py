@@ -137,6 +137,17 @@ def test_a_whole_channel_gain_error_is_found_on_the_paired_scale(
         sentence = reports["unpaired"].sentence()
         assert sentence.startswith("unexplained_disagreement: the whole level of 1 channel(s)")
         assert f"{channel} +" in sentence and "gain" in sentence
+        # 6 dB flags bins of its own: no effect is ranked (let alone named) on top of a
+        # level error — physics fitted to a sensor fault (second review, session 23)
+        problem = null_problems[(seed, "unpaired")]
+        louder = problem.measured.copy()
+        louder[:, 1] += 2 * GAIN_3DB
+        six = run_workflow(
+            dataclasses.replace(problem, measured=louder), linear_simulator, settings=settings
+        )
+        assert six.before.bands and [o.channel for o in six.before.offsets] == [channel]
+        assert six.verdict == "unexplained_disagreement" and six.ranking == ()
+        assert "no library effect was tried while a channel's level is off" in six.sentence()
         figure = before_after_figure(reports["unpaired"])  # the uniform row is named a level
         try:
             assert f"whole channel level off: {channel} +" in figure._suptitle.get_text()
