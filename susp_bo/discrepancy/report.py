@@ -83,14 +83,20 @@ class DiagnosisReport:
         if self.verdict == "unexplained_disagreement" and self.before.offsets:
             bands = self.before.bands
             text = offsets_sentence(self.before.offsets)
-            if bands:  # flagged too, but no effect is ranked on top of a level error
+            if bands:  # flagged too: what the best candidate could not do
                 text += (
                     f" {len(bands)} band(s) are flagged as well (strongest "
-                    f"{describe_band(bands[0])}); no library effect was tried while a "
-                    "channel's level is off: check the sensor, then calibrate and diagnose "
-                    "again."
+                    f"{describe_band(bands[0])})"
                 )
+                if self.naming_check is not None:
+                    why = "; ".join(r["message"] for r in self.naming_check.reasons)
+                    best = self.naming_check.effect
+                    text += f"; the best library candidate, {best}, was not named: {why}"
+                text += ". Check the sensor, then calibrate and diagnose again."
             return f"unexplained_disagreement: {text}"
+        if self.verdict == "named" and self.before.offsets:  # rule 6: it removed the level
+            levels = ", ".join(f"{o.channel} {o.offset_db:+.1f} dB" for o in self.before.offsets)
+            return f"{self._sentence()} It also explains the whole-level difference of {levels}."
         return self._sentence() + (
             f" Also: {offsets_sentence(self.before.offsets)}" if self.before.offsets else ""
         )

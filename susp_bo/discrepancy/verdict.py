@@ -7,9 +7,9 @@ Verdicts (``discrepancy.json["verdict"]``, the command-line summary, the noteboo
   disagreement elsewhere (:class:`NamingRule`);
 * ``unexplained_disagreement`` — flagged bands that no library effect explains: the
   bands are listed with a sentence saying what kind of physics could produce them
-  (:func:`describe_band`); or a channel whose whole level is off
-  (:func:`~.detection.channel_offsets`: a sensor's gain, units or mounting), where no
-  effect is ranked at all until the sensor is checked; ``named_effect`` is null;
+  (:func:`describe_band`), or a channel whose whole level is off
+  (:func:`~.detection.channel_offsets`: a sensor's gain, units or mounting) that no
+  effect removes; ``named_effect`` is null;
 * ``calibration_not_trusted`` — the calibration's reliability verdict is not
   ``trusted`` (or absent): residuals of an unfinished fit are not model
   discrepancy, so none is reported (:func:`calibration_reliability`).
@@ -29,7 +29,12 @@ Naming rule (a candidate is named only when *all* hold, else unexplained):
    the strongest band before;
 5. it creates no disagreement: the refit flags no band in a channel where no bin
    was flagged before (an effect that puts energy where the data have none is not
-   the data's pattern, e.g. a sensor on a bracket taken for a carbody mode).
+   the data's pattern, e.g. a sensor on a bracket taken for a carbody mode);
+6. it leaves no level error: a channel whose whole level was off before
+   (:func:`~.detection.channel_offsets`) is not off after the refit — an effect fitted
+   to the bands of a miscalibrated sensor is physics fitted to a sensor fault (a real
+   effect, e.g. a compliant yaw-damper mounting at 300 km/h, can shift a channel's
+   level, and then removes it).
 
 Accept rule of an augmented model (:func:`accept_augmented`): it is the answer only
 if its posterior predictive log density over *all* bins is higher than the base
@@ -227,6 +232,18 @@ def check_naming(
             "code": "new_disagreement",
             "message": f"the refit creates disagreement in {len(created)} band(s) of channels "
             f"that agreed before ({where}): the effect predicts energy the data do not have",
+        })  # fmt: skip
+    level_left = [
+        offset
+        for offset in augmented_check.offsets
+        if offset.channel in {o.channel for o in base_check.offsets}
+    ]
+    if level_left:  # a channel's whole level is still off: a sensor, not this effect
+        where = ", ".join(f"{o.channel} {o.offset_db:+.1f} dB" for o in level_left)
+        reasons.append({
+            "code": "level_error_left",
+            "message": f"the refit leaves the whole level of {where} off: a level error (a "
+            "sensor's gain, units or mounting) that the effect does not explain",
         })  # fmt: skip
     return NamingCheck(
         effect=effect,

@@ -194,12 +194,8 @@ def _run(
     name = simulator.name if fast is simulator else f"{simulator.name} (ranking: {fast.name})"
     common = {"problem": problem, "base": base, "before": before, "gap_before": gap,
               "simulator": name}  # fmt: skip
-    if not before.bands or before.offsets:
-        # a whole-channel level error (a sensor's gain, units, mounting) is no library
-        # effect, and it biases every fit made with that channel: nothing is named on top of
-        # it (an effect fitted to the bands it flags would be physics fitted to a sensor
-        # fault); the sentence says to check the sensor, then diagnose again
-        verdict = "unexplained_disagreement" if before.bands or before.offsets else "consistent"
+    if not before.bands:  # a whole-channel level error alone: no library effect makes one
+        verdict = "unexplained_disagreement" if before.offsets else "consistent"
         return DiagnosisReport(**common, ranking=(), named_effect=None, augmented=None,
                                after=None, gap_after=gap, verdict=verdict)  # fmt: skip
     ranking_base = base if fast is simulator else fit_base(problem, fast, base.w)

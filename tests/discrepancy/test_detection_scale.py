@@ -137,8 +137,8 @@ def test_a_whole_channel_gain_error_is_found_on_the_paired_scale(
         sentence = reports["unpaired"].sentence()
         assert sentence.startswith("unexplained_disagreement: the whole level of 1 channel(s)")
         assert f"{channel} +" in sentence and "gain" in sentence
-        # 6 dB flags bins of its own: no effect is ranked (let alone named) on top of a
-        # level error — physics fitted to a sensor fault (second review, session 23)
+        # 6 dB flags bins of its own: no effect may be named on top of a level error it does
+        # not remove — physics fitted to a sensor fault (second review, session 23)
         problem = null_problems[(seed, "unpaired")]
         louder = problem.measured.copy()
         louder[:, 1] += 2 * GAIN_3DB
@@ -146,8 +146,11 @@ def test_a_whole_channel_gain_error_is_found_on_the_paired_scale(
             dataclasses.replace(problem, measured=louder), linear_simulator, settings=settings
         )
         assert six.before.bands and [o.channel for o in six.before.offsets] == [channel]
-        assert six.verdict == "unexplained_disagreement" and six.ranking == ()
-        assert "no library effect was tried while a channel's level is off" in six.sentence()
+        assert six.verdict == "unexplained_disagreement" and six.named_effect is None
+        assert six.naming_check is not None
+        assert "level_error_left" in [r["code"] for r in six.naming_check.reasons]
+        assert six.sentence().startswith("unexplained_disagreement: the whole level of")
+        assert "Check the sensor, then calibrate and diagnose again." in six.sentence()
         figure = before_after_figure(reports["unpaired"])  # the uniform row is named a level
         try:
             assert f"whole channel level off: {channel} +" in figure._suptitle.get_text()
