@@ -55,7 +55,14 @@ cases per second (machine shared with a demo run). The probe case the rule was m
 (a mid-car vertical accelerometer on an 11 Hz, 6 % damped bracket, ν = 3, noise 0.02,
 seeds 2–4; named ``carbody_bending`` before) is ``unexplained_disagreement`` on 3/3.
 
-Session 23 (27 Nov 2026), the paired detection scale on the fast path
+Session 23 (27 Nov 2026), after the whole-channel level test (``channel_offsets``) and
+naming rule 6 (``level_error_left``), ``--quick --parts names outside null`` (what
+``susp-bo diagnose`` does, σ_B): **10/10 named and accepted, out of library 0/10 named and
+10/10 flagged, null 0/6**, 143 s. A first version that ranked no effect at all while a
+channel's level was off refused ``yaw_damper_series_stiffness`` at 300 km/h (9/10): that
+effect shifts a channel's level itself, and its refit removes the level error.
+
+Session 23, the paired detection scale on the fast path
 (``--quick --parts names outside null --output-error paired``; each run judged against
 its own track on the Welch sensor-noise variance plus a robust per-channel model error,
 refits reweighted to it; :mod:`susp_bo.discrepancy.detection_scale`): **10/10 named and
