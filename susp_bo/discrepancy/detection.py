@@ -42,7 +42,7 @@ dependence (measured on null data in the tests and the benchmark).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -113,12 +113,11 @@ class ChannelOffset:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
-        return {
-            "channel": self.channel,
-            "offset_db": self.offset_db,
-            "z": self.z,
-            "p_value": self.p_value,
-        }
+        return asdict(self)
+
+    def label(self) -> str:
+        """``"<channel> +2.8 dB"``: how sentences, reasons and figures name it."""
+        return f"{self.channel} {self.offset_db:+.1f} dB"
 
 
 def channel_offsets(

@@ -92,7 +92,7 @@ def before_after_figure(
     caption = "gap: mean Z² on the bins flagged before (≈ 1 or less: consistent with B)"
     if report.before.offsets:  # a level error shows as a uniform row: say it is one
         caption += "; whole channel level off: " + ", ".join(
-            f"{o.channel} {o.offset_db:+.1f} dB" for o in report.before.offsets
+            o.label() for o in report.before.offsets
         )
     if note:
         caption = f"{note} — {caption}"

@@ -95,7 +95,7 @@ class DiagnosisReport:
                 text += ". Check the sensor, then calibrate and diagnose again."
             return f"unexplained_disagreement: {text}"
         if self.verdict == "named" and self.before.offsets:  # rule 6: it removed the level
-            levels = ", ".join(f"{o.channel} {o.offset_db:+.1f} dB" for o in self.before.offsets)
+            levels = ", ".join(o.label() for o in self.before.offsets)
             return f"{self._sentence()} It also explains the whole-level difference of {levels}."
         return self._sentence() + (
             f" Also: {offsets_sentence(self.before.offsets)}" if self.before.offsets else ""
@@ -223,9 +223,7 @@ def offsets_sentence(offsets: tuple[ChannelOffset, ...]) -> str:
     if not offsets:
         return ""
     listed = "; ".join(
-        f"{o.channel} {o.offset_db:+.1f} dB throughout (median over its bands; channel "
-        f"Z {o.z:+.1f})"
-        for o in offsets
+        f"{o.label()} throughout (median over its bands; channel Z {o.z:+.1f})" for o in offsets
     )
     return (
         f"the whole level of {len(offsets)} channel(s) differs from the model by "

@@ -239,7 +239,7 @@ def check_naming(
         if offset.channel in {o.channel for o in base_check.offsets}
     ]
     if level_left:  # a channel's whole level is still off: a sensor, not this effect
-        where = ", ".join(f"{o.channel} {o.offset_db:+.1f} dB" for o in level_left)
+        where = ", ".join(o.label() for o in level_left)
         reasons.append({
             "code": "level_error_left",
             "message": f"the refit leaves the whole level of {where} off: a level error (a "
