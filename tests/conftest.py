@@ -11,7 +11,10 @@ one explicitly with ``pytest --hypothesis-profile=ci``.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import subprocess
+import sys
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
@@ -87,3 +90,32 @@ def fast_rig(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("rigs") / "hst_trailer_fast.toml"
     path.write_text(tomli_w.dumps(document))
     return path
+
+
+_HOLD_FOLDER = (
+    "import sys, time; from pathlib import Path; "
+    "from susp_bo.output_lock import hold_output_folder\n"
+    "with hold_output_folder(Path(sys.argv[1])):\n"
+    "    print('held', flush=True); time.sleep(120)\n"
+)
+
+
+@pytest.fixture
+def held_elsewhere() -> Callable[[Path], contextlib.AbstractContextManager[int]]:
+    """``with held_elsewhere(folder) as pid:`` — another process holds ``folder``'s results
+    lock (:mod:`susp_bo.output_lock`) for the block, then is killed (kill -9: the operating
+    system releases the lock)."""
+
+    @contextlib.contextmanager
+    def hold(folder: Path) -> Iterator[int]:
+        holder = subprocess.Popen(
+            [sys.executable, "-c", _HOLD_FOLDER, str(folder)], stdout=subprocess.PIPE, text=True
+        )
+        try:
+            assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+            yield holder.pid
+        finally:
+            holder.kill()
+            holder.communicate()  # waits, and closes the pipe
+
+    return hold

@@ -10,13 +10,6 @@ import pytest
 
 from susp_bo.output_lock import LOCK_NAME, OutputFolderBusy, hold_output_folder, refuse_if_busy
 
-HOLD = (
-    "import sys, time; from pathlib import Path; "
-    "from susp_bo.output_lock import hold_output_folder\n"
-    "with hold_output_folder(Path(sys.argv[1])):\n"
-    "    print('held', flush=True); time.sleep(60)\n"
-)
-
 
 def test_this_process_may_hold_a_folder_again_and_lets_go_at_the_outer_end(
     tmp_path: Path,
@@ -40,23 +33,16 @@ def _busy_for_another_process(folder: Path) -> bool:
 
 
 def test_another_process_holding_the_folder_is_named_and_its_death_frees_it(
-    tmp_path: Path,
+    tmp_path: Path, held_elsewhere
 ) -> None:
-    holder = subprocess.Popen(
-        [sys.executable, "-c", HOLD, str(tmp_path)], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
-        with pytest.raises(OutputFolderBusy, match=rf"in use by process {holder.pid} "):
+    with held_elsewhere(tmp_path) as pid:
+        with pytest.raises(OutputFolderBusy, match=rf"in use by process {pid} "):
             refuse_if_busy(tmp_path)
         with (  # retried for ~0.1 s, then refused
             pytest.raises(OutputFolderBusy, match="then run yours again"),
             hold_output_folder(tmp_path),
         ):
             pass
-    finally:
-        holder.kill()  # kill -9: the operating system releases the lock
-        holder.communicate()  # waits, and closes the pipe
-    refuse_if_busy(tmp_path)
+    refuse_if_busy(tmp_path)  # the holder was killed: free again
     with hold_output_folder(tmp_path):
         pass

@@ -155,21 +155,11 @@ def test_a_resume_below_the_finished_evaluations_is_refused(
 
 
 def test_a_folder_another_process_writes_into_is_refused(
-    finished_copy: Path, calibrate_command
+    finished_copy: Path, calibrate_command, held_elsewhere
 ) -> None:
     """Two runs into one --out both ran on one store and left study.toml of one run beside
     result.json of the other (outside probe, session 23); a fresh run was told to --resume."""
-    hold = (
-        "import sys, time; from pathlib import Path; "
-        "from susp_bo.output_lock import hold_output_folder\n"
-        "with hold_output_folder(Path(sys.argv[1])):\n"
-        "    print('held', flush=True); time.sleep(120)\n"
-    )
-    holder = subprocess.Popen(
-        [sys.executable, "-c", hold, str(finished_copy)], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+    with held_elsewhere(finished_copy) as pid:
         before = _snapshot(finished_copy)
         for extra in (["--resume", "--budget", "40"], []):
             refused = calibrate_command(
@@ -177,12 +167,9 @@ def test_a_folder_another_process_writes_into_is_refused(
             )
             assert refused.returncode == 2, refused.stderr[-2000:]
             assert "Traceback" not in refused.stderr
-            assert f"is in use by process {holder.pid}" in refused.stderr
+            assert f"is in use by process {pid}" in refused.stderr
             assert "resume it with --resume" not in refused.stderr
             assert _snapshot(finished_copy) == before
-    finally:
-        holder.kill()
-        holder.communicate()
 
 
 def test_a_damaged_store_is_named_and_left_as_it_was(

@@ -185,32 +185,16 @@ def test_the_minimum_a_small_budget_is_told_is_a_budget_that_runs(
 
 
 def test_a_campaign_folder_another_process_writes_into_is_refused_before_any_work(
-    folder: Path, tmp_path: Path
+    folder: Path, tmp_path: Path, held_elsewhere: Any
 ) -> None:
     """A campaign held by another process (a `calibrate --resume` on it) was met only when
     monitor reached it, possibly hours into the run (second review, session 23)."""
-    import subprocess
-    import sys
-
     campaign = tmp_path / "out" / "TRAIN-1" / "2026-01-10"
     campaign.mkdir(parents=True)
-    hold = (
-        "import sys, time; from pathlib import Path; "
-        "from susp_bo.output_lock import hold_output_folder\n"
-        "with hold_output_folder(Path(sys.argv[1])):\n"
-        "    print('held', flush=True); time.sleep(60)\n"
-    )
-    holder = subprocess.Popen(
-        [sys.executable, "-c", hold, str(campaign)], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+    with held_elsewhere(campaign) as pid:
         with pytest.raises(
             MonitorError, match=rf"campaign TRAIN-1/2026-01-10: out: .* in use by process "
-            rf"{holder.pid}"
+            rf"{pid}"
         ):  # fmt: skip
             susp_bo.monitor(folder, tmp_path / "out", progress=False)
         assert sorted(p.name for p in campaign.iterdir()) == [".susp-bo.lock"]
-    finally:
-        holder.kill()
-        holder.communicate()
