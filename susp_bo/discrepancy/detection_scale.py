@@ -161,21 +161,9 @@ def paired_scale(
     )
 
 
-def describe(scale: DetectionScale) -> str:
-    """One line for reports: which B the check used and its model-error sd per channel."""
-    sd = ", ".join(f"{v:.3g}" for v in scale.model_error_sd)
-    if scale.model == "paired":
-        return (
-            "paired output error (sensor noise of each run's Welch spectra + model error "
-            f"τ_c = {sd})"
-        )
-    return f"unpaired output error (σ_B = {sd})"
-
-
 __all__ = [
     "CHI2_1_MEDIAN",
     "DetectionScale",
-    "describe",
     "paired_scale",
     "robust_model_error_variance",
     "unpaired_scale",
