@@ -8,9 +8,12 @@ to stderr, results to files under ``--out``.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Sequence
+from typing import Any
 
 from susp_bo import __version__
 from susp_bo.commands._arguments import integer, number
@@ -189,6 +192,25 @@ INTERRUPTED_HINTS = {
 """What to do after Ctrl-C, per command (where work was kept)."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler's or a service manager's stop, ``kill PID``), raised in the main
+    thread like Ctrl-C: the same clean-up runs (workers stopped, the store closed, the
+    results folder released) and the user is told what was kept, where the default action
+    of SIGTERM ended the process in silence."""
+
+
+def _raise_on_sigterm() -> Any:
+    """Makes SIGTERM raise :class:`Terminated`; returns the handler it replaced (None where
+    none could be set: not the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def terminate(signum: int, frame: object) -> None:
+        raise Terminated
+
+    return signal.signal(signal.SIGTERM, terminate)
+
+
 def _user_error_types() -> tuple[type[BaseException], ...]:
     """The exceptions that mean bad input (exit code 2, one message, no traceback).
 
@@ -235,6 +257,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2
+    previous = _raise_on_sigterm()
     try:
         return int(args.handler(args))
     except Exception as error:
@@ -244,10 +267,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             traceback.print_exc()
         print(f"susp-bo {args.command}: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"susp-bo {args.command}: interrupted{INTERRUPTED_HINTS.get(args.command, '')}",
+    except KeyboardInterrupt as stop:
+        what = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted"
+        print(f"susp-bo {args.command}: {what}{INTERRUPTED_HINTS.get(args.command, '')}",
               file=sys.stderr)  # fmt: skip
-        return 130
+        return 128 + signal.SIGTERM if isinstance(stop, Terminated) else 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -63,11 +63,13 @@ class LineProgress:
         self._start = time.monotonic()
         self._last = self._start
         self._closed = False
+        self._written: float | None = None  # the count of the last line printed
         self._write()
 
     def _write(self) -> None:
         if self.disable:
             return
+        self._written = self.n
         count = f"{self.n:g}" if self.total is None else f"{self.n:g}/{self.total:g}"
         share = f" ({100.0 * self.n / self.total:.0f} %)" if self.total else ""
         elapsed = time.monotonic() - self._start
@@ -83,10 +85,11 @@ class LineProgress:
             self._write()
 
     def close(self) -> None:
-        """Print the final line (once)."""
+        """Print the final line (once; not again when the last line printed has its count)."""
         if not self._closed:
             self._closed = True
-            self._write()
+            if self._written != self.n:
+                self._write()
 
     def __enter__(self) -> LineProgress:
         return self

@@ -96,3 +96,35 @@ def test_ctrl_c_says_what_was_kept_and_how_to_continue(
     err = capsys.readouterr().err
     assert err.startswith("susp-bo calibrate: interrupted; the likelihood evaluations")
     assert "with --resume to continue" in err and "Traceback" not in err
+
+
+def test_sigterm_is_reported_like_ctrl_c_and_the_handler_restored(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SIGTERM (``kill PID``, a batch scheduler's stop) ended a run in silence, without the
+    clean-up of Ctrl-C (outside probe, session 23): it now raises in the main thread, the
+    user is told what was kept, the exit code is 143, and the caller's handler is back."""
+    import os
+    import signal
+    import time
+
+    import susp_bo.commands.calibrate as calibrate_command
+
+    cleaned = []
+
+    def terminated(args: object) -> int:
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)  # the signal arrives first
+            return 0
+        finally:
+            cleaned.append(True)  # a finally block of the running command runs
+
+    monkeypatch.setattr(calibrate_command, "run_calibrate", terminated)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["calibrate", "study.toml"]) == 143
+    err = capsys.readouterr().err
+    assert err.startswith("susp-bo calibrate: terminated (SIGTERM); the likelihood evaluations")
+    assert "with --resume to continue" in err and "Traceback" not in err
+    assert cleaned == [True]
+    assert signal.getsignal(signal.SIGTERM) is before

@@ -60,6 +60,20 @@ def test_lines_are_periodic_not_per_update() -> None:
     assert quiet.getvalue() == ""
 
 
+def test_the_final_line_is_not_printed_twice() -> None:
+    """A periodic line printed at the last update was followed by the same line from
+    ``close`` (a resumed calibration's log ended with "log L evaluations: 51/60" twice)."""
+    stream = io.StringIO()
+    bar = LineProgress(total=3, desc="steps", file=stream, interval_s=0.0)
+    bar.update(3)  # the interval has passed: printed now
+    bar.close()
+    lines = stream.getvalue().splitlines()
+    assert [line.split(",")[0] for line in lines] == [
+        "steps: 0/3 it (0 %)",
+        "steps: 3/3 it (100 %)",
+    ]
+
+
 def test_run_tasks_reports_plain_lines_on_a_non_terminal(
     capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

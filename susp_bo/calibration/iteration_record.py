@@ -20,7 +20,6 @@ logger = logging.getLogger(__name__)
 
 
 def record_iteration(
-    iteration: int,
     phase: Phase,
     x: np.ndarray,
     y: np.ndarray,
@@ -28,10 +27,15 @@ def record_iteration(
     history: list[IterationReport],
     on_iteration: Callable[[IterationReport], None] | None,
 ) -> None:
-    """Appends the report of the batch just evaluated to ``history``, logs it, calls back."""
+    """Appends the report of the batch just evaluated to ``history``, logs it, calls back.
+
+    Reports are numbered 1, 2, … in the order their batches were evaluated: the loop's
+    own iteration counter (which seeds each step, and also advances on steps that hand
+    over to a phase instead of evaluating) is not the number a reader sees.
+    """
     best = int(np.nanargmax(y)) if np.isfinite(y).any() else 0
     report = IterationReport(
-        iteration,
+        len(history) + 1,
         phase,
         x.shape[0],
         float(y[best]),
@@ -62,6 +66,4 @@ class PhaseRecorder:
         self.y = np.concatenate([self.y, values])
         self.bar.update(len(w))
         self.iteration += 1
-        record_iteration(
-            self.iteration, phase, self.x, self.y, criterion, self.history, self.on_iteration
-        )
+        record_iteration(phase, self.x, self.y, criterion, self.history, self.on_iteration)

@@ -397,7 +397,7 @@ def calibrate(
         y_new = evaluate_checked(evaluate, w_new)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(size)
-        record_iteration(iteration, phase, x, y, step.criterion, history, on_iteration)
+        record_iteration(phase, x, y, step.criterion, history, on_iteration)
     check = None
     if n_check > 0:
         with torch_state(settings.num_threads):
@@ -407,7 +407,7 @@ def calibrate(
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(n_check)
-        record_iteration(iteration + 1, "check", x, y, check.max_abs_error, history, on_iteration)
+        record_iteration("check", x, y, check.max_abs_error, history, on_iteration)
         (logger.info if check.verdict == "ok" else logger.warning)(check.line())
     bar.close()
     with torch_state(settings.num_threads):

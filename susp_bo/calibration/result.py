@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -30,17 +31,29 @@ class IterationReport:
     criterion: float
     n_failed: int
 
-    def line(self) -> str:
-        """One-line summary."""
+    def criterion_text(self) -> str:
+        """The phase's stopping statistic, named: e.g. ``"EI/spread 0.0795"``.
+
+        The local phase's finite-difference batches predict no gain (NaN): they are
+        named as such, not printed as ``nan``.
+        """
         name = {
             "ego": "EI/spread",
-            "check": "max |check error|",
+            "check": "max |check error| (nats)",
             "local": "predicted gain (nats)",
             "basin": "basin best log L",
-        }.get(self.phase, "post. sd[log L]")
+        }.get(self.phase, "posterior sd of log L (nats)")
+        if math.isfinite(self.criterion):
+            return f"{name} {self.criterion:.3g}"
+        if self.phase == "local":
+            return "finite-difference runs (no gain predicted)"
+        return f"{name} n/a"
+
+    def line(self) -> str:
+        """One-line summary."""
         return (
             f"iter {self.iteration:3d} [{self.phase}] evaluations {self.n_evaluations}"
-            f" best log L {self.best_log_likelihood:.6g} {name} {self.criterion:.3g}"
+            f" best log L {self.best_log_likelihood:.6g} {self.criterion_text()}"
             f" failed {self.n_failed}"
         )
 

@@ -282,13 +282,22 @@ def run_study(
                 len(study.runs),
                 study.names,
             )
+            stored = store.count()
+            if resume and stored:
+                line = (
+                    f"resuming: {stored} simulator run(s) stored in {STORE_NAME} are reused, not "
+                    "rerun (the log L evaluations below count from 0 and pass them quickly)"
+                )
+                log.info(line)
+                if progress:
+                    print(line, file=sys.stderr)
             started = time.perf_counter()
             evaluator = study_evaluator(study, store, executor, progress=progress)
 
             def report(item: IterationReport) -> None:
                 line = (
                     f"iteration {item.iteration} [{item.phase}]: "
-                    f"best log L {item.best_log_likelihood:.3f}, criterion {item.criterion:.3g}, "
+                    f"best log L {item.best_log_likelihood:.3f}, {item.criterion_text()}, "
                     f"evaluations {item.n_evaluations}, simulator runs {evaluator.simulations_run} "
                     f"(+{evaluator.simulations_reused} reused)"
                 )

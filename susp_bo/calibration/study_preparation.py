@@ -113,7 +113,10 @@ def _output_error(
         if measured.shape[0] < 2:
             raise StudyError(
                 "output_error.sigma: 'estimate' needs at least 2 measured runs (found 1); "
-                "give sigma as a number or a {channel = sigma} table"
+                'give sigma as a number or a {channel = sigma} table, or model = "paired" '
+                "(one run is enough when its track was measured), in the [output_error] "
+                "section of a study .toml (the command line has no flag for them: see the "
+                'README\'s "Scripted studies")'
             )
         estimated = estimate_output_error(measured)
         return OutputError(estimated.sigma, ell)

@@ -44,6 +44,12 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
             if args.out:
                 config = dataclasses.replace(config, out=Path(args.out).resolve())
         else:
+            if target.suffix == ".toml" and target.is_file() and _is_readable_study(target):
+                raise UsageError(
+                    f"DATA_DIR: {args.data_dir!r} given after the study file {str(target)!r}, "
+                    "which names its own data (data = ...); drop DATA_DIR, or give a rig "
+                    "instead of the study"
+                )
             if args.data_dir is None or args.out is None:
                 raise UsageError(
                     "give RIG DATA_DIR --out DIR, or a study .toml "
@@ -129,6 +135,17 @@ def _is_study(path: Path) -> bool:
         document = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return True  # let load_study_config report the problem
+    return not isinstance(document.get("rig"), dict)
+
+
+def _is_readable_study(path: Path) -> bool:
+    """A .toml that parses and is a study (has no [rig] table)."""
+    import tomllib
+
+    try:
+        document = tomllib.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
     return not isinstance(document.get("rig"), dict)
 
 

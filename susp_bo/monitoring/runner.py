@@ -12,7 +12,8 @@ level and inside a campaign:
   bit for bit, the result equals that of an uninterrupted run);
 - a campaign added to the monitoring folder later is simply new work.
 
-Before any simulation every campaign is checked (:func:`check_campaign`): a finished or
+Before any simulation the budget and every campaign are checked
+(:mod:`~susp_bo.monitoring.campaign_checks`): a finished or
 interrupted campaign is reused only if its evaluation store's fingerprint matches the
 runs now in its folder, the rig and the output error
 (:mod:`~susp_bo.monitoring.campaign_results`), and a finished one only if its result and
@@ -49,7 +50,7 @@ from susp_bo import __version__
 from susp_bo.calibration.budget import design_for_budget
 from susp_bo.calibration.study import RESULT_NAME, SAMPLES_NAME, run_study
 from susp_bo.calibration.study_inputs import StudyError
-from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study
+from susp_bo.calibration.study_preparation import STORE_NAME
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.monitoring.alarms import (
     ALARM_THRESHOLD,
@@ -60,9 +61,9 @@ from susp_bo.monitoring.alarms import (
     summarise_parameter,
     trust,
 )
+from susp_bo.monitoring.campaign_checks import check_campaign, small_budget_problem
 from susp_bo.monitoring.campaign_results import (
     CampaignResultError,
-    check_campaign_store,
     read_finished,
 )
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
@@ -321,6 +322,12 @@ def monitor(
     )
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
+    if any(state != "finished" for state in status.values()):  # one budget, refused once
+        problem = small_budget_problem(
+            base, len(names), budget is not None, argument_names, folder / MONITOR_CONFIG_NAME
+        )
+        if problem is not None:
+            raise MonitorError(problem)
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
     for campaign in campaigns:  # every input checked before the first simulation
@@ -410,33 +417,6 @@ def _rig_and_names(
             raise _flag_error(arguments["parameters"], "parameters", error) from None
         raise MonitorError(f"{in_file}{error}") from None
     return spec, tuple(names)
-
-
-def check_campaign(
-    config: StudyConfig, campaign: Campaign, state: str, names: Sequence[str]
-) -> np.ndarray:
-    """Check one campaign before any simulation; its (2 x q) C_w.
-
-    A new campaign: its inputs (:func:`prepare_study`). An interrupted one: also that its
-    store belongs to the runs, rig and output error of now. A finished one: its result and
-    draws are readable and of ``names``, and were computed on the runs now in its folder
-    (:func:`~susp_bo.monitoring.campaign_results.check_campaign_store`).
-
-    Raises:
-        StudyError: bad inputs of the campaign.
-        CampaignResultError: a stale or damaged results folder (nothing is changed).
-    """
-    if state == "finished":
-        # the budget plays no part in a finished result: only its data are compared
-        config = dataclasses.replace(
-            config, budget=dataclasses.replace(config.budget, allow_small=True)
-        )
-    study = prepare_study(config, resume=(config.out / STORE_NAME).exists())
-    if state == "finished":  # readable, of these parameters, in the units the rig gives now
-        read_finished(config.out, names, study.units)
-    if state != "new":
-        check_campaign_store(study, finished=state == "finished", campaign_folder=campaign.folder)
-    return study.bounds
 
 
 def build_report(

@@ -153,3 +153,32 @@ def test_summary_columns_widen_for_per_component_names() -> None:
     assert column == len(name) + 1
     assert first[column:].startswith("4.39 [4.06, 4.72] MN·s/m")
     assert second.startswith(f"{name} 2.45 [2.20, 2.70] MN·s/m")
+
+
+def test_a_study_file_with_a_data_folder_is_told_to_drop_it(
+    data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``calibrate study.toml data`` got "give RIG DATA_DIR --out DIR, or a study .toml"
+    (outside probe, session 23): the study names its data itself."""
+    study = tmp_path / "study.toml"
+    study.write_text('rig = "hst_trailer"\ndata = "data"\nout = "out"\n')
+    assert main(["calibrate", str(study), str(data_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "DATA_DIR: " in err and "names its own data (data = ...); drop DATA_DIR" in err
+
+
+def test_one_run_on_the_command_line_is_told_where_sigma_goes(
+    fast_rig: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One measured run with the rig form of the command line was told to "give sigma as a
+    number", which has no flag (outside probe, session 23): the message says where."""
+    data = tmp_path / "data"
+    assert main(["synth", str(fast_rig), "--out", str(data), "--nu", "2", "--seed", "1"]) == 0
+    (data / "run_001.h5").unlink()
+    capsys.readouterr()
+    out = tmp_path / "out"
+    assert main(["calibrate", str(fast_rig), str(data), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "'estimate' needs at least 2 measured runs (found 1)" in err
+    assert "in the [output_error] section of a study .toml" in err
+    assert not (out / "evaluations.sqlite").exists()

@@ -1,0 +1,81 @@
+"""The budget of ``susp-bo monitor`` is refused once, named as the caller set it."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import pytest
+import tomli_w
+
+import susp_bo
+from susp_bo.cli import main
+from susp_bo.monitoring.campaign_checks import small_budget_problem
+from susp_bo.monitoring.runner import API_NAMES, CLI_NAMES, MonitorError, base_config
+
+
+@pytest.fixture(scope="module")
+def folder(
+    fast_rig: Path,
+    tmp_path_factory: pytest.TempPathFactory,
+    campaign_adder: Any,
+    monitor_config_writer: Any,
+) -> Path:
+    """One campaign; ``monitor.toml`` with a budget of 8, below the minimum, not allowed."""
+    root = tmp_path_factory.mktemp("budget") / "campaigns"
+    campaign_adder(root, fast_rig, "TRAIN-1", "2026-01-10", seed=1)
+    path = monitor_config_writer(root, fast_rig)
+    settings = tomllib.loads(path.read_text())
+    settings["budget"]["allow_small"] = False
+    path.write_text(tomli_w.dumps(settings))
+    return root
+
+
+def test_the_python_api_is_told_its_keywords_not_the_command_line_flags(
+    folder: Path, tmp_path: Path
+) -> None:
+    """susp_bo.monitor(budget=5) was told to "give budget.max_evaluations (--budget) 14 or
+    more, or set [budget] allow_small = true (--allow-small-budget)", blamed on the first
+    campaign (session 23's note)."""
+    with pytest.raises(MonitorError) as raised:
+        susp_bo.monitor(folder, tmp_path / "out", budget=5, progress=False)
+    text = str(raised.value)
+    assert text.startswith("budget 5 is below the minimum 14 for q = 2 parameters")
+    assert "give budget 14 or more, or pass allow_small_budget=True" in text
+    assert "--" not in text and "campaign" not in text.split(":")[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_command_line_is_told_its_flags(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    assert main(["monitor", str(folder), "--out", str(out), "--budget", "5"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("susp-bo monitor: --budget 5 is below the minimum 14")
+    assert "give --budget 14 or more, or pass --allow-small-budget" in err
+    assert not out.exists()
+
+
+def test_a_budget_of_monitor_toml_is_blamed_on_the_file(folder: Path, tmp_path: Path) -> None:
+    with pytest.raises(MonitorError) as raised:
+        susp_bo.monitor(folder, tmp_path / "out", progress=False)
+    text = str(raised.value)
+    assert text.startswith(f"{folder / 'monitor.toml'}: [budget] max_evaluations = 8 is below")
+    assert "set it to 14 or more, or set [budget] allow_small = true there" in text
+    base = base_config(folder, tmp_path / "out", arguments=CLI_NAMES)
+    problem = small_budget_problem(base, 2, False, CLI_NAMES, folder / "missing.toml")
+    assert problem is not None
+    assert problem.startswith("the default budget (8) is below the minimum 14")
+    assert "pass --budget 14 or more, or pass --allow-small-budget" in problem
+
+
+def test_enough_or_allowed_is_no_problem(folder: Path, tmp_path: Path) -> None:
+    config = folder / "monitor.toml"
+    enough = base_config(folder, tmp_path / "out", budget=14, arguments=API_NAMES)
+    assert small_budget_problem(enough, 2, True, API_NAMES, config) is None
+    allowed = base_config(folder, tmp_path / "out", budget=5, allow_small_budget=True)
+    assert small_budget_problem(allowed, 2, True, API_NAMES, config) is None
+    small = base_config(folder, tmp_path / "out", budget=13, arguments=API_NAMES)
+    assert small_budget_problem(small, 2, True, API_NAMES, config) is not None
