@@ -138,6 +138,9 @@ def test_the_loop_finds_a_sharp_posterior_with_the_local_phase() -> None:
     result = calibrate(problem, problem.bounds, names, _loop_settings(), progress=False)
     assert result.local_search is not None
     assert any(h.phase == "local" for h in result.history)
+    # reports numbered as evaluated: the step handing over to the local phase left a gap
+    assert [h.iteration for h in result.history] == list(range(1, len(result.history) + 1))
+    assert "nan" not in " ".join(h.line() for h in result.history)
     span = problem.bounds[1] - problem.bounds[0]
     mode = problem.bounds[0] + result.local_search.mode * span
     sd = result.local_search.sd * span
