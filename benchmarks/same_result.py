@@ -17,6 +17,11 @@ bad input::
 
     python benchmarks/same_result.py DIR_A DIR_B
 
+Either side may be a ``result.json`` file instead of a folder, e.g. the kept reference of
+the README's demo (``benchmarks/reference/demo_amd_epyc_zen3_result.json``); the draws are
+then compared by the SHA-256 each side's folder holds, printed for both (the README gives
+the reference's).
+
 Measured (session 10, 2026-11-26): the default demo on this Intel Xeon (2 cores, Debian
 12, glibc 2.36) and on a second machine of the same CPU model (16 cores, Ubuntu 24.04,
 glibc 2.39): identical, draws bit-identical; the unpinned ``--smoke`` runs
@@ -85,11 +90,22 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _load(folder: Path) -> dict[str, Any]:
-    path = folder / "result.json"
+def _result_path(given: Path) -> Path:
+    """``given`` itself when it is a file, else ``given/result.json``."""
+    return given if given.is_file() else given / "result.json"
+
+
+def _samples_path(given: Path) -> Path | None:
+    """The folder's ``posterior_samples.npy`` (None for a bare result.json)."""
+    return None if given.is_file() else given / "posterior_samples.npy"
+
+
+def _load(given: Path) -> dict[str, Any]:
+    path = _result_path(given)
     if not path.is_file():
         print(
-            f"same_result.py: {path}: no result.json (expected a demo/calibrate --out folder)",
+            f"same_result.py: {path}: no result.json (expected a demo/calibrate --out folder "
+            "or a result.json file)",
             file=sys.stderr,
         )
         raise SystemExit(2)
@@ -103,8 +119,8 @@ def _load(folder: Path) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     """Compare two result folders; 0 identical, 1 different, 2 bad input."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("a", type=Path, help="first result folder (holds result.json)")
-    parser.add_argument("b", type=Path, help="second result folder")
+    parser.add_argument("a", type=Path, help="first result folder (or its result.json)")
+    parser.add_argument("b", type=Path, help="second result folder (or its result.json)")
     args = parser.parse_args(argv)
     a, b = _load(args.a), _load(args.b)
     for name, result in (("A", a), ("B", b)):
@@ -125,8 +141,12 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"result.json: identical (all keys but {', '.join(RUN_KEYS)})")
     same_draws = True
-    paths = [folder / "posterior_samples.npy" for folder in (args.a, args.b)]
-    if all(p.is_file() for p in paths):
+    found = [_samples_path(given) for given in (args.a, args.b)]
+    for name, path in zip("AB", found):
+        if path is not None and path.is_file():
+            print(f"{name}: posterior_samples.npy SHA-256 {_sha256(path)}")
+    paths = [path for path in found if path is not None and path.is_file()]
+    if len(paths) == 2:
         if _sha256(paths[0]) == _sha256(paths[1]):
             print("posterior_samples.npy: bit-identical")
         else:
