@@ -8,6 +8,7 @@ to stderr, results to files under ``--out``.
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import sys
 import threading
@@ -211,6 +212,22 @@ def _raise_on_sigterm() -> Any:
     return signal.signal(signal.SIGTERM, terminate)
 
 
+_STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS})
+"""Write failures of the disk, not of the input: disk full, quota exceeded, read-only."""
+
+
+def _storage_message(error: OSError, command: str) -> str:
+    """What a disk-full (quota, read-only) failure means for the work done, and what to do."""
+    where = f" ({error.filename})" if error.filename else ""
+    kept = {
+        "calibrate": "the likelihood evaluations already stored are kept (a result being "
+        "written may be missing): free space, then rerun the same command with --resume",
+        "monitor": "finished campaigns and the stored evaluations of the interrupted one are "
+        "kept: free space, then run the same command again",
+    }.get(command, "free space, then run the command again")
+    return f"cannot write{where}: {error.strerror or error}; {kept}"
+
+
 def _user_error_types() -> tuple[type[BaseException], ...]:
     """The exceptions that mean bad input (exit code 2, one message, no traceback).
 
@@ -261,6 +278,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.handler(args))
     except Exception as error:
+        if isinstance(error, OSError) and error.errno in _STORAGE_ERRNOS:
+            if args.debug:
+                traceback.print_exc()
+            print(f"susp-bo {args.command}: {_storage_message(error, args.command)}",
+                  file=sys.stderr)  # fmt: skip
+            return 1
         if not isinstance(error, _user_error_types()):
             raise
         if args.debug:

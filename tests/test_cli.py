@@ -128,3 +128,32 @@ def test_sigterm_is_reported_like_ctrl_c_and_the_handler_restored(
     assert "with --resume to continue" in err and "Traceback" not in err
     assert cleaned == [True]
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_a_full_disk_is_a_message_not_a_traceback(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A disk that filled up while a result was written ended in a traceback (session 23's
+    note): it is now one line saying what was kept and to rerun with --resume, exit 1."""
+    import errno
+
+    import susp_bo.commands.calibrate as calibrate_command
+
+    def disk_full(args: object) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device", "out/result.json")
+
+    monkeypatch.setattr(calibrate_command, "run_calibrate", disk_full)
+    assert main(["calibrate", "study.toml"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(
+        "susp-bo calibrate: cannot write (out/result.json): No space left on device; the "
+        "likelihood evaluations already stored are kept"
+    )
+    assert "rerun the same command with --resume" in err and "Traceback" not in err
+
+    def other(args: object) -> int:
+        raise OSError(errno.EIO, "Input/output error")
+
+    monkeypatch.setattr(calibrate_command, "run_calibrate", other)
+    with pytest.raises(OSError, match="Input/output error"):  # not hidden: a real fault
+        main(["calibrate", "study.toml"])
