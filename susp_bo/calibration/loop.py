@@ -62,6 +62,7 @@ from susp_bo.calibration.design import (
     space_filling_design,
     to_unit,
 )
+from susp_bo.calibration.exploration_audit import audit_size, run_audit
 from susp_bo.calibration.iteration_record import PhaseRecorder, record_iteration
 from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator, local_search
 from susp_bo.calibration.loop_step import (
@@ -75,8 +76,13 @@ from susp_bo.calibration.loop_step import (
     propose_step,
     torch_state,
 )
+from susp_bo.calibration.mode_jumps import modes_chains_stayed_in
 from susp_bo.calibration.posterior import check_names, summarize
-from susp_bo.calibration.reliability import assess, checked_expected_at_truth
+from susp_bo.calibration.reliability import (
+    POOR_MIXING_R_HAT,
+    assess,
+    checked_expected_at_truth,
+)
 from susp_bo.calibration.result import CalibrationResult, IterationReport, Phase
 from susp_bo.calibration.sampling import (
     mean_sd_at_draws,
@@ -391,6 +397,18 @@ def calibrate(
             )
             continue
         if step.proposal is None:
+            size = audit_size(main_budget - x.shape[0], q, settings.audit_share)
+            if size and step.stop_reason in ("converged", "ego_converged"):
+                x, y, found = run_audit(
+                    evaluate, b, x, y, size, iteration, settings, history, on_iteration, bar
+                )
+                if found:  # back to EGO over C_w, with the audit's points in the data
+                    phase, box, boxed, laplace = "ego", b.copy(), settings.trust_region, None
+                    ego_cap = x.shape[0] + int(
+                        settings.max_ego_fraction * (main_budget - x.shape[0])
+                    )
+                    basins_done = False
+                    continue
             stop_reason = step.stop_reason
             break
         w_new = from_unit(step.proposal.numpy(), box)
@@ -434,7 +452,10 @@ def calibrate(
             predicted_max = float(log_l(u_map)[0])
             predicted_max_sd = float(surrogate.log_likelihood_uncertainty(u_map)[1][0])
         draws_sd = mean_sd_at_draws(surrogate, draws_u)
-    searched = [h for h in history if h.phase != "check"]
+    modes = int(diag.get("modes", 1) or 1)
+    if modes < 2 and not np.all(np.asarray(summary.r_hat) <= POOR_MIXING_R_HAT):
+        modes = modes_chains_stayed_in(draws_u)  # chains left in modes the jumps never saw
+    searched = [h for h in history if h.phase not in ("check", "explore")]
     reliability = assess(
         names=names,
         bounds=b,
@@ -452,7 +473,7 @@ def calibrate(
         check=check,
         expected_at_truth=expected_at_truth,
         box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names),
-        modes=int(diag.get("modes", 1) or 1),
+        modes=modes,
         sampler=str(diag.get("sampler", "random_walk")),
         draws_sd=draws_sd,
         evaluated_unit=(x - b[0]) / (b[1] - b[0]),

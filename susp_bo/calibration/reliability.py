@@ -91,6 +91,9 @@ Verdict = Literal["trusted", "not_trusted"]
 Reason = dict[str, Any]
 """One reason: ``code`` (str), ``message`` (str, plain words) and the numbers behind it."""
 
+POOR_MIXING_R_HAT = 1.05
+"""Largest split R-hat of a mixed sampler (``poor_mixing`` above it)."""
+
 ORDER = (
     "budget_too_small",
     "not_converged",
@@ -421,7 +424,7 @@ def poor_mixing(
     r_hat: np.ndarray,
     ess: np.ndarray,
     names: Sequence[str],
-    r_hat_max: float = 1.05,
+    r_hat_max: float = POOR_MIXING_R_HAT,
     ess_min: float = 400.0,
 ) -> Reason | None:
     """``poor_mixing`` when R-hat > ``r_hat_max`` or ESS < ``ess_min`` on any parameter."""

@@ -16,7 +16,7 @@ from susp_bo.calibration.reliability import Reliability
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
-Phase = Literal["design", "ego", "basin", "local", "refine", "check"]
+Phase = Literal["design", "ego", "basin", "local", "refine", "explore", "check"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,7 @@ class IterationReport:
             "check": "max |check error| (nats)",
             "local": "predicted gain (nats)",
             "basin": "basin best log L",
+            "explore": "audit: max log L above prediction (nats)",
         }.get(self.phase, "posterior sd of log L (nats)")
         if math.isfinite(self.criterion):
             return f"{name} {self.criterion:.3g}"

@@ -85,6 +85,11 @@ class CalibrationSettings:
             than the best point's (:mod:`.basin_search`: other modes EGO found only at
             their fringe); nothing happens when the data have no such points.
         basin: the basin phase's settings.
+        audit_share: when the search converges with evaluations left, the share of them
+            (at least q + 1 points, else none) spent on an audit of C_w far from every
+            evaluation before the result is called converged (:mod:`.exploration_audit`):
+            an audit point whose log L is near the best and above the surrogate's band
+            sends the loop back to EGO. In [0, 1]; 0 = stop as soon as the criteria say so.
         refine: run the posterior-refinement phase after EGO.
         refine_tolerance: refinement stops when the posterior mean of sd[log L̃] < this (nats).
         refine_optimism: κ >= 0. 0 (default): refinement candidates are surrogate posterior
@@ -158,6 +163,7 @@ class CalibrationSettings:
     basin_search: bool = True
     basin: BasinSettings = field(default_factory=BasinSettings)
     refine: bool = True
+    audit_share: float = 0.5
     refine_tolerance: float = 0.02
     refine_optimism: float = 0.0
     check_points: int = 8
@@ -218,6 +224,8 @@ class CalibrationSettings:
             raise ValueError(
                 f"local_search_fraction: {self.local_search_fraction} must be in (0, 1)"
             )
+        if not 0.0 <= self.audit_share <= 1.0:  # also false for nan
+            raise ValueError(f"audit_share: {self.audit_share} must be in [0, 1]")
         if not 0.0 <= self.max_ego_fraction <= 1.0:
             raise ValueError(f"max_ego_fraction: {self.max_ego_fraction} must be in [0, 1]")
         if self.design_method not in ("sobol", "lhs"):

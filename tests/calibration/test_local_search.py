@@ -8,6 +8,7 @@ optimisation of the exact log L (nonlinear h).
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -202,24 +203,33 @@ def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> Non
     """The design only sees [7, 10]: the local phase climbs a wrong hill, the interval
     misses the truth, and the verdict says ``below_expected_fit`` (best log L far below
     the log L expected at the truth, −n/2 ± √(n/2) for this Gaussian B; its message names
-    the local optimum as one of the two causes)."""
+    the local optimum as one of the two causes). Without the early stop's audit: with it
+    the search looks at the rest of C_w and climbs the right hill (below)."""
     problem = WavySpectra()
     bounds = np.array([[0.0], [10.0]])
     n = problem.f.size
+    settings = _loop_settings(
+        max_evaluations=40,
+        initial_design_size=6,
+        max_ego_fraction=0.0,
+        check_points=4,
+        allow_small_budget=True,
+    )
+    arguments = dict(
+        progress=False,
+        design=np.linspace(7.0, 10.0, 6)[:, None],
+        expected_at_truth=(-0.5 * n, (n / 2) ** 0.5),
+    )
+    audited = calibrate(problem, bounds, ["w"], settings, **arguments)  # type: ignore[arg-type]
+    assert "explore" in [h.phase for h in audited.history]
+    lo, hi = audited.summary.interval95[0]
+    assert lo <= 3.0 <= hi  # the audit found the hill the design never saw
     result = calibrate(
         problem,
         bounds,
         ["w"],
-        _loop_settings(
-            max_evaluations=40,
-            initial_design_size=6,
-            max_ego_fraction=0.0,
-            check_points=4,
-            allow_small_budget=True,
-        ),
-        progress=False,
-        design=np.linspace(7.0, 10.0, 6)[:, None],
-        expected_at_truth=(-0.5 * n, (n / 2) ** 0.5),
+        replace(settings, audit_share=0.0),
+        **arguments,  # type: ignore[arg-type]
     )
     assert result.local_search is not None
     lo, hi = result.summary.interval95[0]
