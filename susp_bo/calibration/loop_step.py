@@ -102,8 +102,24 @@ def impute_failures(y: np.ndarray) -> np.ndarray:
 
 
 def evaluate_checked(evaluate: Evaluate, w: np.ndarray) -> np.ndarray:
-    """``evaluate`` at w (n x q, physical units) -> log L (n,), shape checked, −inf as NaN."""
-    out = np.asarray(evaluate(np.array(w, dtype=np.float64)), dtype=np.float64).reshape(-1)
+    """``evaluate`` at w (n x q, physical units) -> log L (n,), shape checked, −inf as NaN.
+
+    Raises:
+        ValueError: ``evaluate`` returned None, values that are not real numbers (complex,
+            strings, booleans) or another number of values than points.
+    """
+    raw = evaluate(np.array(w, dtype=np.float64))
+    if raw is None:
+        raise ValueError(
+            f"evaluate: returned None; expected {w.shape[0]} log L values (nats), one per "
+            "row of its argument"
+        )
+    values = np.asarray(raw)
+    if values.dtype.kind not in "iuf":
+        raise ValueError(
+            f"evaluate: returned values of type {values.dtype}; expected real numbers (log L, nats)"
+        )
+    out = values.astype(np.float64).reshape(-1)
     if out.shape != (w.shape[0],):
         raise ValueError(f"evaluate: returned shape {out.shape}, expected ({w.shape[0]},)")
     return np.where(out == -math.inf, np.nan, out)

@@ -268,11 +268,18 @@ def summarize(
 
 
 def check_names(names: Sequence[str], argument: str = "names") -> None:
-    """Refuses parameter names that repeat (each names one variable of the results).
+    """Refuses parameter names that are not non-empty strings, or that repeat (each names one
+    variable of the results: a column of the summary, a key of ``result.json``).
 
     Raises:
-        ValueError: naming ``argument`` and the first repeated name.
+        ValueError: naming ``argument`` and the first bad or repeated name.
     """
+    for name in names:
+        if not isinstance(name, str) or not name.strip():
+            raise ValueError(
+                f"{argument}: {list(names)!r} is not allowed: {name!r} is not a parameter "
+                "name; expected non-empty strings"
+            )
     twice = repeated(names)
     if twice:
         raise ValueError(

@@ -75,6 +75,7 @@ them with each reason. The sentence and its advice: :mod:`.reliability_sentence`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -84,7 +85,7 @@ import numpy as np
 
 from susp_bo.calibration.budget import BudgetRequirement, budget_too_small
 from susp_bo.calibration.failed_region import failed_region
-from susp_bo.calibration.reliability_sentence import sentence
+from susp_bo.calibration.reliability_sentence import AdviceFor, sentence
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
 Verdict = Literal["trusted", "not_trusted"]
@@ -149,6 +150,10 @@ class Reliability:
     def codes(self) -> tuple[str, ...]:
         """The reason codes, in order."""
         return tuple(r["code"] for r in self.reasons)
+
+    def worded_for(self, advice_for: AdviceFor) -> Reliability:
+        """The same verdict with its sentence's advice in ``advice_for``'s terms."""
+        return dataclasses.replace(self, sentence=sentence(self.reasons, self.evidence, advice_for))
 
     def to_dict(self) -> dict[str, Any]:
         """The ``result.json["reliability"]`` object (JSON-ready)."""
@@ -489,6 +494,7 @@ def assess(
     draws_sd: float = math.nan,
     evaluated_unit: np.ndarray | None = None,
     evaluated_ok: np.ndarray | None = None,
+    advice_for: AdviceFor = "python",
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -498,6 +504,9 @@ def assess(
         modes: separated modes the sampler found (``RandomWalkMetropolis.diagnostics``).
         sampler: the kernel whose draws are assessed ("random_walk" or "hmc"; the
             trusted sentence names HMC).
+        advice_for: whose terms the sentence's advice is in (:mod:`.reliability_sentence`):
+            "python" (the settings of :func:`~susp_bo.calibration.loop.calibrate`, the
+            default) or "command_line" (a study: :meth:`Reliability.worded_for`).
         draws_sd: mean sd[log L̃] (nats) over the reported draws (:func:`not_converged`).
         evaluated_unit: (n x q) every evaluated point in the unit cube of C_w, and
         evaluated_ok: (n,) True where its log L was finite (:func:`failed_region`; None:
@@ -553,6 +562,6 @@ def assess(
     return Reliability(
         verdict="not_trusted" if reasons else "trusted",
         reasons=tuple(reasons),
-        sentence=sentence(reasons, evidence),
+        sentence=sentence(reasons, evidence, advice_for),
         evidence=evidence,
     )

@@ -2,16 +2,21 @@
 
 Trusted: why (the search converged, the held-out check agreed, the MCMC mixed — naming
 HMC when its draws were assessed). Not trusted: the first reason's message, the other
-reasons' codes, and what to do about the first (``_ADVICE``, with the budget to give).
+reasons' codes, and what to do about the first, in the caller's terms: a Python caller of
+:func:`~susp_bo.calibration.loop.calibrate` is told the settings to change
+(:data:`PYTHON_ADVICE`), a study (``susp-bo calibrate``, ``demo``, ``monitor``) the flags and
+study keys (:data:`COMMAND_LINE_ADVICE`), each with the budget to give.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, Literal
 
-_ADVICE = {
+AdviceFor = Literal["python", "command_line"]
+
+COMMAND_LINE_ADVICE = {
     "budget_too_small": "rerun with --resume --budget {minimum} or more (the evaluations "
     "already made are reused)",
     "not_converged": "rerun with --resume --budget {more}",
@@ -30,10 +35,36 @@ _ADVICE = {
     "search refines every mode; modes that persist mean the data do not identify the "
     "parameters uniquely",
 }
+"""Advice for a study run from the command line (or ``run_study``): flags and study keys."""
+
+_MORE = "rerun with a larger budget, CalibrationSettings(max_evaluations={more})"
+PYTHON_ADVICE = {
+    "budget_too_small": "give CalibrationSettings(max_evaluations={minimum}) or more",
+    "not_converged": _MORE,
+    "below_expected_fit": "look for physics the model misses (susp-bo diagnose examines a "
+    "study's results folder); if the search may sit in a local optimum, " + _MORE,
+    "failed_region": "look at the failed evaluations (result.X where result.y is NaN): "
+    "narrow the bounds to where the evaluator runs, or make the failing evaluations run, "
+    "then rerun",
+    "at_bound": "widen that parameter's bounds if its value may lie outside, or " + _MORE,
+    "surrogate_misfit": _MORE,
+    "surrogate_unchecked": "rerun with check points (CalibrationSettings(check_points=8))",
+    "search_box_edge": _MORE,
+    "poor_mixing": "rerun with more MCMC draws (CalibrationSettings(mcmc_samples=..., "
+    "mcmc_chains=...))",
+    "multimodal": "look at the pair plot; " + _MORE + " so that the search refines every "
+    "mode; modes that persist mean the data do not identify the parameters uniquely",
+}
+"""Advice for a caller of :func:`~susp_bo.calibration.loop.calibrate`: its settings."""
 
 
-def sentence(reasons: Sequence[Mapping[str, Any]], evidence: Mapping[str, Any]) -> str:
-    """One plain sentence: what is wrong first (or why it is trusted), then what to do."""
+def sentence(
+    reasons: Sequence[Mapping[str, Any]],
+    evidence: Mapping[str, Any],
+    advice_for: AdviceFor = "command_line",
+) -> str:
+    """One plain sentence: what is wrong first (or why it is trusted), then what to do, in
+    the terms of ``advice_for`` (module docstring)."""
     if not reasons:
         gap = float(evidence.get("optimum_gap_nats", math.nan))
         where = "above" if gap < 0 else "below"
@@ -47,7 +78,8 @@ def sentence(reasons: Sequence[Mapping[str, Any]], evidence: Mapping[str, Any]) 
         )
     first = reasons[0]
     budget = int(evidence.get("budget", 0))
-    advice = _ADVICE.get(first["code"], "rerun with a larger budget").format(
+    table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
+    advice = table.get(first["code"], "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),
     )

@@ -319,6 +319,10 @@ def run_study(
                 design=design,
             )
             n_simulations = store.count()
+            if result.reliability is not None:  # a study's advice: its flags and keys
+                result = dataclasses.replace(
+                    result, reliability=result.reliability.worded_for("command_line")
+                )
         if result.check is not None:
             line = result.check.line()
             if result.check.verdict != "ok":

@@ -268,6 +268,10 @@ def _study_recalibration(
                 # augmented model's verdict says whether it now reproduces the data as B expects
                 expected_at_truth=expected_log_likelihood_at_truth(study),
             )
+        if result.reliability is not None:  # a command's advice: flags and study keys
+            result = dataclasses.replace(
+                result, reliability=result.reliability.worded_for("command_line")
+            )
         summary = result.summary.to_dict()
         verdict = None if result.reliability is None else json_ready(result.reliability.to_dict())
         verdicts.append(verdict)

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -280,3 +282,29 @@ def test_repeated_names_are_refused_before_any_evaluation() -> None:
     with pytest.raises(ValueError, match=r"names: \['a', 'a'\] .*'a' is given more than once"):
         calibrate(evaluate, BOX, ["a", "a"], TINY, progress=False)
     assert evaluate.batches == []
+
+
+@pytest.mark.parametrize(
+    ("returned", "expected"),
+    [
+        (lambda w: None, "evaluate: returned None; expected 10 log L values"),
+        (lambda w: np.zeros(w.shape[0]) + 1j, "evaluate: returned values of type complex128"),
+        (lambda w: np.full(w.shape[0], "1.0"), "evaluate: returned values of type <U3"),
+        (lambda w: np.zeros(w.shape[0], dtype=bool), "evaluate: returned values of type bool"),
+    ],
+)
+def test_evaluate_returning_no_real_numbers_is_named(returned: Any, expected: str) -> None:
+    """None was reported as "returned shape (1,)" and complex values or strings were
+    converted silently (outside probe, session 24)."""
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    settings = replace(_small(), initial_design_size=10)
+    with pytest.raises(ValueError, match=re.escape(expected)):
+        calibrate(returned, bounds, ["a", "b"], settings, progress=False)
+
+
+@pytest.mark.parametrize("names", [["x", ""], ["x", 3], ["x", "  "]])
+def test_names_must_be_non_empty_strings(names: list[Any]) -> None:
+    """An empty name and a non-string name were accepted (outside probe, session 24)."""
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    with pytest.raises(ValueError, match="names: .* is not a parameter name"):
+        calibrate(lambda w: -np.sum(w**2, axis=1), bounds, names, _small(), progress=False)

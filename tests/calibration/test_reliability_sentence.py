@@ -32,3 +32,36 @@ def test_not_trusted_sentence_gives_the_first_reason_its_advice_and_the_others()
         "Not trusted: b; rerun with --resume --budget 51 or more (the evaluations already "
         "made are reused)."
     )
+
+
+def test_a_python_caller_is_told_the_settings_not_the_flags() -> None:
+    """Sentences from calibrate() told a Python caller to "rerun with --resume --budget 400"
+    or to set "[mcmc] draws", which do not exist there (outside probe, session 24)."""
+    reasons = ({"code": "not_converged", "message": "m"}, {"code": "poor_mixing", "message": "p"})
+    evidence = {"budget": 200, "minimum_budget": 22}
+    python = sentence(reasons, evidence, "python")
+    assert python == (
+        "Not trusted: m (also: poor_mixing); rerun with a larger budget, "
+        "CalibrationSettings(max_evaluations=400)."
+    )
+    assert "--" not in python
+    assert "--resume --budget 400" in sentence(reasons, evidence, "command_line")
+    mixing = sentence(reasons[1:], evidence, "python")
+    assert "CalibrationSettings(mcmc_samples=..., mcmc_chains=...)" in mixing
+    small = sentence(({"code": "budget_too_small", "message": "b"},), evidence, "python")
+    assert small.endswith("give CalibrationSettings(max_evaluations=22) or more.")
+
+
+def test_a_verdict_is_reworded_for_a_study_without_changing_anything_else() -> None:
+    from susp_bo.calibration.reliability import Reliability
+
+    reasons = ({"code": "surrogate_misfit", "message": "m"},)
+    evidence = {"budget": 60, "minimum_budget": 51}
+    python = Reliability("not_trusted", reasons, sentence(reasons, evidence, "python"), evidence)
+    study = python.worded_for("command_line")
+    assert study.sentence.endswith("rerun with --resume --budget 120.")
+    assert (study.verdict, study.reasons, study.evidence) == (
+        python.verdict,
+        python.reasons,
+        python.evidence,
+    )
