@@ -74,6 +74,7 @@ from susp_bo.calibration.loop_step import (
     fit_in_box,
     propose_check,
     propose_step,
+    repeated_check,
     torch_state,
 )
 from susp_bo.calibration.mode_jumps import modes_chains_stayed_in
@@ -423,6 +424,7 @@ def calibrate(
         w_new = from_unit(u.numpy(), box)
         y_new = evaluate_checked(evaluate, w_new)
         check = SurrogateCheck(u.numpy(), predicted, sd, y_new, settings.check_tolerance, noise)
+        check = repeated_check(check, evaluate, w_new)  # a failed check: noise or misfit?
         x, y = np.vstack([x, w_new]), np.concatenate([y, y_new])
         bar.update(n_check)
         record_iteration("check", x, y, check.max_abs_error, history, on_iteration)

@@ -10,6 +10,7 @@ evaluations reproduces every step.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Callable, Iterator
@@ -31,7 +32,11 @@ from susp_bo.calibration.result import Phase
 from susp_bo.calibration.sampling import surrogate_log_likelihood
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate
-from susp_bo.calibration.surrogate_check import edge_points, observation_noise_sd
+from susp_bo.calibration.surrogate_check import (
+    SurrogateCheck,
+    edge_points,
+    observation_noise_sd,
+)
 from susp_bo.calibration.surrogate_fit import Bowl, fit_surrogate
 from susp_bo.calibration.trust_region import next_box, training_mask
 
@@ -280,3 +285,23 @@ def propose_check(
     u = edge_points(post, surrogate_log_likelihood(surrogate, settings.estimator)(post), size)
     mean, sd = surrogate.log_likelihood_uncertainty(u)
     return u, mean.numpy(), sd.numpy(), observation_noise_sd(surrogate, u)
+
+
+def repeated_check(check: SurrogateCheck, evaluate: Evaluate, points: np.ndarray) -> SurrogateCheck:
+    """A failed check with its worst points evaluated again (:mod:`.surrogate_check`).
+
+    Args:
+        check: the held-out check.
+        evaluate: the caller's log L.
+        points: (n x q) the checked points, physical units.
+
+    Returns:
+        ``check`` itself when it passed, else with ``repeat_difference_nats`` (the largest
+        move of a repeat; the repeats do not join the data).
+    """
+    worst = check.worst()
+    if check.verdict == "ok" or not worst.size:
+        return check
+    moved = evaluate_checked(evaluate, points[worst]) - check.observed[worst]
+    largest = moved[np.nanargmax(np.abs(moved))] if np.isfinite(moved).any() else math.nan
+    return dataclasses.replace(check, repeat_difference_nats=float(largest))

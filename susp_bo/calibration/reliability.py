@@ -392,6 +392,22 @@ def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> 
     if check.verdict == "ok":
         return None
     e = check.errors
+    if check.verdict == "noisy":
+        return {
+            "code": "surrogate_misfit",
+            "message": (
+                f"the held-out check found {int(check.outside.sum())} of {len(e)} "
+                "posterior-edge points outside the surrogate's predictive band, and log L is "
+                f"noisy: evaluated again, a point moved by "
+                f"{check.repeat_difference_nats:+.2f} nats; a surrogate that assumes no noise "
+                "fits the noise, so the real posterior may be wider or narrower"
+            ),
+            "direction": "noisy",
+            "n_above": int(np.sum(check.outside & (e > 0))),
+            "n_below": int(np.sum(check.outside & (e < 0))),
+            "max_abs_error_nats": check.max_abs_error,
+            "repeat_difference_nats": check.repeat_difference_nats,
+        }
     above = check.outside & (e > 0)
     below = check.outside & (e < 0)
     parts = []

@@ -31,6 +31,8 @@ COMMAND_LINE_ADVICE = {
     "surrogate_unchecked": "rerun with check points ([budget] check_points)",
     "search_box_edge": "rerun with --resume --budget {more}",
     "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
+    "noisy": "make the evaluations repeatable (the same parameters must give the same log "
+    "L), then rerun",
     "multimodal": "look at the pair plot; rerun with --resume --budget {more} so that the "
     "search refines every mode; modes that persist mean the data do not identify the "
     "parameters uniquely",
@@ -49,6 +51,8 @@ PYTHON_ADVICE = {
     "at_bound": "widen that parameter's bounds if its value may lie outside, or " + _MORE,
     "surrogate_misfit": _MORE,
     "surrogate_unchecked": "rerun with check points (CalibrationSettings(check_points=8))",
+    "noisy": "let the surrogate learn the noise: CalibrationSettings(surrogate="
+    'SurrogateSettings(noise="learned"))',
     "search_box_edge": _MORE,
     "poor_mixing": "rerun with more MCMC draws (CalibrationSettings(mcmc_samples=..., "
     "mcmc_chains=...))",
@@ -79,7 +83,8 @@ def sentence(
     first = reasons[0]
     budget = int(evidence.get("budget", 0))
     table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
-    advice = table.get(first["code"], "rerun with a larger budget").format(
+    code = "noisy" if first.get("direction") == "noisy" else first["code"]
+    advice = table.get(code, "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),
     )

@@ -41,6 +41,15 @@ direction and below at the other is a shift). Before, the verdict took the sign
 of the single largest error only, so an underconfident −2.3 nats hid two points
 1.8–1.9 nats above (overconfident) at the same edges. The checked points then join
 the data, so the final surrogate uses them.
+
+The direction assumes a repeatable log L. A noisy one, modelled without noise, scatters
+the checked values around the truth and misleads it: with 2 nats of noise the reported
+posterior was half as wide as the exact one and the check said "underconfident" (outside
+probe, session 24). So when the check fails, the loop evaluates its :data:`REPEATS`
+worst points once more (``repeat_difference_nats``: the largest move, not added to the
+data; a study's store returns a stored simulation as it was): a repeat that moves by more
+than :data:`REPEAT_TOLERANCE_NATS` makes the verdict ``"noisy"`` — the direction cannot be
+told, and the surrogate should learn the noise.
 """
 
 from __future__ import annotations
@@ -55,7 +64,12 @@ from scipy.stats import chi2
 
 from susp_bo.calibration.surrogate import Surrogate
 
-Verdict = Literal["ok", "overconfident", "underconfident", "mixed"]
+Verdict = Literal["ok", "overconfident", "underconfident", "mixed", "noisy"]
+REPEAT_TOLERANCE_NATS = 0.1
+"""A repeat evaluation that moves by more than this (nats) shows a noisy log L."""
+REPEATS = 2
+"""Points a failed check evaluates again (its worst): one repeat of a log L with 0.5 nat of
+noise stays within the tolerance 11 % of the time, two 1 %."""
 _EDGE_QUANTILES = (0.025, 0.16, 0.3)
 """Lower quantiles of the successive rounds over the q directions (upper = 1 − lower):
 the 95 % interval's ends first, then ±1 sd, then inner points when n > 2 q."""
@@ -77,6 +91,9 @@ class SurrogateCheck:
         noise_sd: (n,) or scalar observation noise sd of log L assumed by the surrogate
             (nats; 0 for a deterministic simulator).
         z: band half-width in predictive standard deviations.
+        repeat_difference_nats: the largest move of log L evaluated again at the worst
+            points (second value minus first; NaN: not repeated — the loop repeats them
+            when the check fails).
     """
 
     points_unit: np.ndarray
@@ -86,6 +103,7 @@ class SurrogateCheck:
     tolerance_nats: float
     noise_sd: np.ndarray | float = 0.0
     z: float = 3.0
+    repeat_difference_nats: float = math.nan
 
     @property
     def errors(self) -> np.ndarray:
@@ -137,21 +155,41 @@ class SurrogateCheck:
         e = self.errors[self.outside]
         if e.size == 0:
             return "ok"
+        if self.noisy:
+            return "noisy"
         if np.all(e > 0):
             return "overconfident"
         if np.all(e < 0):
             return "underconfident"
         return "mixed"
 
+    @property
+    def noisy(self) -> bool:
+        """A repeat evaluation moved by more than :data:`REPEAT_TOLERANCE_NATS`."""
+        return bool(abs(self.repeat_difference_nats) > REPEAT_TOLERANCE_NATS)
+
+    def worst(self, count: int = REPEATS) -> np.ndarray:
+        """Indices of the ``count`` largest |errors| among the successful points, largest
+        first (fewer when fewer succeeded)."""
+        e = np.abs(self.errors)
+        finite = np.flatnonzero(np.isfinite(e))
+        return finite[np.argsort(-e[finite], kind="stable")][:count]
+
     def line(self) -> str:
         """One-line summary for logs."""
         e = self.errors
+        repeat = (
+            f"; log L is noisy: evaluated again, a point moved by "
+            f"{self.repeat_difference_nats:+.2f} nats"
+            if self.noisy
+            else ""
+        )
         return (
             f"surrogate check at {len(self.observed)} posterior-edge points: {self.verdict}"
             f" ({int(np.sum(self.outside & (e > 0)))} above and"
             f" {int(np.sum(self.outside & (e < 0)))} below the predictive band;"
             f" max |log L − predicted| {self.max_abs_error:.2f} nats,"
-            f" band >= {self.tolerance_nats:g})"
+            f" band >= {self.tolerance_nats:g}{repeat})"
         )
 
     def to_dict(self, bounds: np.ndarray) -> dict[str, Any]:
@@ -170,6 +208,11 @@ class SurrogateCheck:
             "joint_p_value": self.joint_p_value,
             "outside": [bool(v) for v in self.outside],
             "noise_sd": np.broadcast_to(self.noise_sd, self.predicted.shape).tolist(),
+            **(
+                {"repeat_difference_nats": self.repeat_difference_nats}
+                if math.isfinite(self.repeat_difference_nats)
+                else {}
+            ),
         }
 
 

@@ -139,3 +139,46 @@ def test_edge_points_are_distinct_when_draws_repeat_and_rounds_go_inward() -> No
     assert len({tuple(p.tolist()) for p in pts}) == 8
     radius = (pts - 0.5).norm(dim=1) / 0.1
     assert torch.all(radius[:4] > 1.7) and torch.all(radius[4:] < 1.3)  # 2.5 % ends, then ±1 sd
+
+
+def _failed_check(observed: np.ndarray) -> SurrogateCheck:
+    """Three of four points 8–17 nats below a confident prediction: "underconfident"."""
+    return SurrogateCheck(
+        points_unit=np.full((4, 1), 0.5),
+        predicted=np.zeros(4),
+        predicted_sd=np.full(4, 0.2),
+        observed=observed,
+        tolerance_nats=1.0,
+    )
+
+
+def test_a_failed_check_on_a_noisy_log_l_says_noisy_not_a_direction() -> None:
+    """With 2 nats of noise and a surrogate assuming none, the reported posterior was half
+    as wide as the exact one and the check said "underconfident ... narrower" (outside
+    probe, session 24): the worst points are evaluated again, and a repeat that moves
+    makes the verdict "noisy", whose advice is to learn the noise."""
+    from susp_bo.calibration.loop_step import repeated_check
+    from susp_bo.calibration.reliability import surrogate_misfit
+    from susp_bo.calibration.reliability_sentence import sentence
+
+    first = np.array([-8.0, -17.0, -0.3, -12.0])
+    points = np.array([[0.1], [0.2], [0.3], [0.4]])
+    rng = np.random.default_rng(0)
+    noisy = repeated_check(_failed_check(first), lambda w: rng.normal(-10, 2, len(w)), points)
+    assert noisy.verdict == "noisy" and noisy.noisy
+    assert abs(noisy.repeat_difference_nats) > 0.1
+    assert "log L is noisy: evaluated again, a point moved by" in noisy.line()
+    reason = surrogate_misfit(noisy)
+    assert reason is not None and reason["direction"] == "noisy"
+    assert "may be wider or narrower" in reason["message"]
+    advice = sentence((reason,), {"budget": 200}, "python")
+    assert advice.endswith('CalibrationSettings(surrogate=SurrogateSettings(noise="learned")).')
+
+    values = {0.1: -8.0, 0.2: -17.0, 0.3: -0.3, 0.4: -12.0}  # a repeatable log L
+    steady = repeated_check(
+        _failed_check(first), lambda w: np.array([values[float(v)] for v in w[:, 0]]), points
+    )
+    assert steady.verdict == "underconfident" and steady.repeat_difference_nats == 0.0
+    assert "repeat_difference_nats" in steady.to_dict(np.array([[0.0], [1.0]]))
+    passed = _failed_check(np.array([-0.1, 0.2, -0.3, 0.1]))
+    assert repeated_check(passed, lambda w: 1 / 0, points) is passed  # nothing evaluated
