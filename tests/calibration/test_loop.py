@@ -306,5 +306,5 @@ def test_evaluate_returning_no_real_numbers_is_named(returned: Any, expected: st
 def test_names_must_be_non_empty_strings(names: list[Any]) -> None:
     """An empty name and a non-string name were accepted (outside probe, session 24)."""
     bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
-    with pytest.raises(ValueError, match="names: .* is not a parameter name"):
+    with pytest.raises(ValueError, match=r"names: .* is not a parameter name"):
         calibrate(lambda w: -np.sum(w**2, axis=1), bounds, names, _small(), progress=False)
