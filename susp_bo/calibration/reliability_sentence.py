@@ -83,7 +83,9 @@ def sentence(
     first = reasons[0]
     budget = int(evidence.get("budget", 0))
     table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
-    code = "noisy" if first.get("direction") == "noisy" else first["code"]
+    # a noisy log L defeats every other remedy (more budget cannot converge on noise)
+    noisy = any(r.get("direction") == "noisy" for r in reasons)
+    code = "noisy" if noisy else first["code"]
     advice = table.get(code, "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),

@@ -173,6 +173,9 @@ def test_a_failed_check_on_a_noisy_log_l_says_noisy_not_a_direction() -> None:
     assert "may be wider or narrower" in reason["message"]
     advice = sentence((reason,), {"budget": 200}, "python")
     assert advice.endswith('CalibrationSettings(surrogate=SurrogateSettings(noise="learned")).')
+    leading = {"code": "not_converged", "message": "m"}  # more budget cannot beat noise
+    led = sentence((leading, reason), {"budget": 200}, "python")
+    assert led.startswith("Not trusted: m (also: surrogate_misfit); let the surrogate learn")
 
     values = {0.1: -8.0, 0.2: -17.0, 0.3: -0.3, 0.4: -12.0}  # a repeatable log L
     steady = repeated_check(
