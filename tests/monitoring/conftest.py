@@ -63,3 +63,17 @@ def campaign_adder():
 def monitor_config_writer():
     """:func:`write_monitor_config`, as a fixture."""
     return write_monitor_config
+
+
+@pytest.fixture(scope="session")
+def one_campaign_folder(fast_rig: Path, tmp_path_factory: pytest.TempPathFactory):
+    """``make(name)``: a new monitoring folder of one campaign (TRAIN-1, 2026-01-10) with
+    the :func:`write_monitor_config` ``monitor.toml``."""
+
+    def make(name: str) -> Path:
+        root = tmp_path_factory.mktemp(name) / "campaigns"
+        add_campaign(root, fast_rig, "TRAIN-1", "2026-01-10", seed=1)
+        write_monitor_config(root, fast_rig)
+        return root
+
+    return make

@@ -16,16 +16,10 @@ from susp_bo.monitoring.runner import API_NAMES, CLI_NAMES, MonitorError, base_c
 
 
 @pytest.fixture(scope="module")
-def folder(
-    fast_rig: Path,
-    tmp_path_factory: pytest.TempPathFactory,
-    campaign_adder: Any,
-    monitor_config_writer: Any,
-) -> Path:
+def folder(one_campaign_folder: Any) -> Path:
     """One campaign; ``monitor.toml`` with a budget of 8, below the minimum, not allowed."""
-    root = tmp_path_factory.mktemp("budget") / "campaigns"
-    campaign_adder(root, fast_rig, "TRAIN-1", "2026-01-10", seed=1)
-    path = monitor_config_writer(root, fast_rig)
+    root = one_campaign_folder("budget")
+    path = root / "monitor.toml"
     settings = tomllib.loads(path.read_text())
     settings["budget"]["allow_small"] = False
     path.write_text(tomli_w.dumps(settings))

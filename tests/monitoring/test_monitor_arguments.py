@@ -19,17 +19,9 @@ from susp_bo.monitoring.runner import MonitorError, base_config
 
 
 @pytest.fixture(scope="module")
-def folder(
-    fast_rig: Path,
-    tmp_path_factory: pytest.TempPathFactory,
-    campaign_adder: Any,
-    monitor_config_writer: Any,
-) -> Path:
+def folder(one_campaign_folder: Any) -> Path:
     """A monitoring folder of one campaign with a ``monitor.toml``."""
-    root = tmp_path_factory.mktemp("arguments") / "campaigns"
-    campaign_adder(root, fast_rig, "TRAIN-1", "2026-01-10", seed=1)
-    monitor_config_writer(root, fast_rig)
-    return root
+    return one_campaign_folder("arguments")
 
 
 def _refused(folder: Path, out: Path, capsys: pytest.CaptureFixture[str], *flags: str) -> str:
