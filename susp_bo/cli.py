@@ -216,16 +216,35 @@ _STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS})
 """Write failures of the disk, not of the input: disk full, quota exceeded, read-only."""
 
 
-def _storage_message(error: OSError, command: str) -> str:
+_SQLITE_STORAGE_WORDS = ("database or disk is full", "readonly database", "disk i/o error")
+"""The evaluation store's (SQLite's) words for the same failures."""
+
+
+def _storage_failure(error: Exception) -> bool:
+    """A write failure of the disk: an OSError of :data:`_STORAGE_ERRNOS`, or the store's
+    SQLite saying the disk is full, the file read-only, or the disk failed."""
+    if isinstance(error, OSError):
+        return error.errno in _STORAGE_ERRNOS
+    sqlite = sys.modules.get("sqlite3")
+    return (
+        sqlite is not None
+        and isinstance(error, sqlite.OperationalError)
+        and any(words in str(error).lower() for words in _SQLITE_STORAGE_WORDS)
+    )
+
+
+def _storage_message(error: Exception, command: str) -> str:
     """What a disk-full (quota, read-only) failure means for the work done, and what to do."""
-    where = f" ({error.filename})" if error.filename else ""
+    filename = getattr(error, "filename", None)
+    where = f" ({filename})" if filename else " (the evaluation store)"
+    reason = getattr(error, "strerror", None) or str(error)
     kept = {
         "calibrate": "the likelihood evaluations already stored are kept (a result being "
         "written may be missing): free space, then rerun the same command with --resume",
         "monitor": "finished campaigns and the stored evaluations of the interrupted one are "
         "kept: free space, then run the same command again",
     }.get(command, "free space, then run the command again")
-    return f"cannot write{where}: {error.strerror or error}; {kept}"
+    return f"cannot write{where}: {reason}; {kept}"
 
 
 def _user_error_types() -> tuple[type[BaseException], ...]:
@@ -278,7 +297,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.handler(args))
     except Exception as error:
-        if isinstance(error, OSError) and error.errno in _STORAGE_ERRNOS:
+        if _storage_failure(error):
             if args.debug:
                 traceback.print_exc()
             print(f"susp-bo {args.command}: {_storage_message(error, args.command)}",

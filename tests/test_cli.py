@@ -157,3 +157,30 @@ def test_a_full_disk_is_a_message_not_a_traceback(
     monkeypatch.setattr(calibrate_command, "run_calibrate", other)
     with pytest.raises(OSError, match="Input/output error"):  # not hidden: a real fault
         main(["calibrate", "study.toml"])
+
+
+def test_a_full_disk_under_the_evaluation_store_is_a_message_too(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The store is SQLite, whose full disk is an OperationalError, not an OSError (review,
+    session 24): the same one line, exit 1."""
+    import sqlite3
+
+    import susp_bo.commands.calibrate as calibrate_command
+
+    def disk_full(args: object) -> int:
+        raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(calibrate_command, "run_calibrate", disk_full)
+    assert main(["calibrate", "study.toml"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(
+        "susp-bo calibrate: cannot write (the evaluation store): database or disk is full; "
+    )
+
+    def locked(args: object) -> int:
+        raise sqlite3.OperationalError("database is locked")
+
+    monkeypatch.setattr(calibrate_command, "run_calibrate", locked)
+    with pytest.raises(sqlite3.OperationalError):  # not a disk failure: not hidden
+        main(["calibrate", "study.toml"])

@@ -57,15 +57,17 @@ AUDIT_SEED_PURPOSE = 7
 """The purpose slot of :func:`~.loop_step.derived_seed` for an audit's candidates."""
 
 
-def audit_size(remaining: int, q: int, share: float = AUDIT_SHARE) -> int:
+def audit_size(remaining: int, q: int, share: float = AUDIT_SHARE, reserve: int = 1) -> int:
     """Points an audit spends with ``remaining`` evaluations left (0: too few to look).
 
     Args:
         remaining: evaluations left before the held-out check's.
         q: number of parameters.
         share: share of ``remaining`` to spend, in [0, 1].
+        reserve: evaluations always left after the audit (the loop's batch size), so that
+            mass the audit finds is searched, or the run ends on the budget and says so.
     """
-    n = int(share * remaining)
+    n = min(int(share * remaining), remaining - reserve)
     return n if n >= q + 1 else 0
 
 

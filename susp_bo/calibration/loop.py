@@ -253,7 +253,11 @@ def calibrate(
 
     Args:
         evaluate: maps W (b x q, physical units) to (b,) log L; NaN marks a failed run.
-            Called with whole batches (the design, then ``batch_size`` points).
+            Called with whole batches (the design, then ``batch_size`` points; an early
+            stop's audit, :mod:`.exploration_audit`, up to half the evaluations left at
+            once). A failed held-out check evaluates its 2 worst points once more to tell
+            noise from misfit (:func:`.loop_step.repeated_check`): those 2 are beyond
+            ``max_evaluations`` and not in the data.
         bounds: (2 x q) lower/upper bounds of C_w (uniform prior).
         names: (q,) parameter names.
         settings: calibration settings (defaults if None).
@@ -398,7 +402,9 @@ def calibrate(
             )
             continue
         if step.proposal is None:
-            size = audit_size(main_budget - x.shape[0], q, settings.audit_share)
+            size = audit_size(
+                main_budget - x.shape[0], q, settings.audit_share, settings.batch_size
+            )
             if size and step.stop_reason in ("converged", "ego_converged"):
                 x, y, found = run_audit(
                     evaluate, b, x, y, size, iteration, settings, history, on_iteration, bar

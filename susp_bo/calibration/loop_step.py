@@ -14,7 +14,7 @@ import dataclasses
 import logging
 import math
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 
 import numpy as np
@@ -120,9 +120,13 @@ def evaluate_checked(evaluate: Evaluate, w: np.ndarray) -> np.ndarray:
             "row of its argument"
         )
     values = np.asarray(raw)
+    if values.dtype.kind == "O":  # e.g. [1.0, None] (None: a failed run, as NaN), Decimal
+        with suppress(TypeError, ValueError):
+            values = values.astype(np.float64)
     if values.dtype.kind not in "iuf":
         raise ValueError(
-            f"evaluate: returned values of type {values.dtype}; expected real numbers (log L, nats)"
+            f"evaluate: returned values of type {values.dtype}; expected real numbers "
+            "(log L, nats; NaN or None for a failed run)"
         )
     out = values.astype(np.float64).reshape(-1)
     if out.shape != (w.shape[0],):
@@ -302,6 +306,9 @@ def repeated_check(check: SurrogateCheck, evaluate: Evaluate, points: np.ndarray
     worst = check.worst()
     if check.verdict == "ok" or not worst.size:
         return check
-    moved = evaluate_checked(evaluate, points[worst]) - check.observed[worst]
-    largest = moved[np.nanargmax(np.abs(moved))] if np.isfinite(moved).any() else math.nan
+    again = evaluate_checked(evaluate, points[worst])
+    if not np.all(np.isfinite(again)):  # it had succeeded (``worst`` are finite ones)
+        return dataclasses.replace(check, repeat_difference_nats=math.inf)
+    moved = again - check.observed[worst]
+    largest = moved[int(np.argmax(np.abs(moved)))]
     return dataclasses.replace(check, repeat_difference_nats=float(largest))

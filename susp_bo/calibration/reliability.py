@@ -398,15 +398,19 @@ def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> 
             "message": (
                 f"the held-out check found {int(check.outside.sum())} of {len(e)} "
                 "posterior-edge points outside the surrogate's predictive band, and log L is "
-                f"noisy: evaluated again, a point moved by "
-                f"{check.repeat_difference_nats:+.2f} nats; a surrogate that assumes no noise "
-                "fits the noise, so the real posterior may be wider or narrower"
+                f"noisy beyond what the surrogate models: {check.repeat_phrase()}; a "
+                "surrogate that assumes less noise fits the noise, so the real posterior may "
+                "be wider or narrower"
             ),
             "direction": "noisy",
             "n_above": int(np.sum(check.outside & (e > 0))),
             "n_below": int(np.sum(check.outside & (e < 0))),
             "max_abs_error_nats": check.max_abs_error,
-            "repeat_difference_nats": check.repeat_difference_nats,
+            "repeat_difference_nats": (  # null: a repeat failed where it had succeeded
+                check.repeat_difference_nats
+                if math.isfinite(check.repeat_difference_nats)
+                else None
+            ),
         }
     above = check.outside & (e > 0)
     below = check.outside & (e < 0)

@@ -165,8 +165,20 @@ class SurrogateCheck:
 
     @property
     def noisy(self) -> bool:
-        """A repeat evaluation moved by more than :data:`REPEAT_TOLERANCE_NATS`."""
-        return bool(abs(self.repeat_difference_nats) > REPEAT_TOLERANCE_NATS)
+        """A repeat moved by more than :data:`REPEAT_TOLERANCE_NATS` and than the noise the
+        surrogate models (3 √2 × its largest noise sd: two draws of that noise), or failed
+        (±inf) where the first evaluation succeeded."""
+        moved = self.repeat_difference_nats
+        if math.isnan(moved):
+            return False
+        modelled = 3.0 * math.sqrt(2.0) * float(np.max(np.asarray(self.noise_sd, dtype=float)))
+        return bool(math.isinf(moved) or abs(moved) > max(REPEAT_TOLERANCE_NATS, modelled))
+
+    def repeat_phrase(self) -> str:
+        """How the repeat showed the noise, for messages."""
+        if math.isinf(self.repeat_difference_nats):
+            return "evaluated again, a point failed (or gave ±inf) where it had succeeded"
+        return f"evaluated again, a point moved by {self.repeat_difference_nats:+.2f} nats"
 
     def worst(self, count: int = REPEATS) -> np.ndarray:
         """Indices of the ``count`` largest |errors| among the successful points, largest
@@ -178,12 +190,7 @@ class SurrogateCheck:
     def line(self) -> str:
         """One-line summary for logs."""
         e = self.errors
-        repeat = (
-            f"; log L is noisy: evaluated again, a point moved by "
-            f"{self.repeat_difference_nats:+.2f} nats"
-            if self.noisy
-            else ""
-        )
+        repeat = f"; log L is noisy: {self.repeat_phrase()}" if self.noisy else ""
         return (
             f"surrogate check at {len(self.observed)} posterior-edge points: {self.verdict}"
             f" ({int(np.sum(self.outside & (e > 0)))} above and"
@@ -209,9 +216,13 @@ class SurrogateCheck:
             "outside": [bool(v) for v in self.outside],
             "noise_sd": np.broadcast_to(self.noise_sd, self.predicted.shape).tolist(),
             **(
-                {"repeat_difference_nats": self.repeat_difference_nats}
-                if math.isfinite(self.repeat_difference_nats)
-                else {}
+                {}
+                if math.isnan(self.repeat_difference_nats)
+                else {  # null: a repeat failed where the first evaluation succeeded
+                    "repeat_difference_nats": self.repeat_difference_nats
+                    if math.isfinite(self.repeat_difference_nats)
+                    else None
+                }
             ),
         }
 

@@ -24,6 +24,10 @@ def test_the_audit_spends_a_share_of_what_is_left_and_nothing_when_too_little() 
     assert audit_size(6, 2) == 3
     assert audit_size(5, 2) == 0  # 2 points cannot look at a 2-D box: no audit
     assert audit_size(178, 2, share=0.0) == 0
+    # a whole-budget audit that found mass would leave nothing to search it with: a batch
+    # is always kept (review, session 24)
+    assert audit_size(20, 2, share=1.0, reserve=4) == 16
+    assert audit_size(6, 2, share=1.0, reserve=4) == 0
     with pytest.raises(ValueError, match="audit_share"):
         CalibrationSettings(audit_share=1.5)
 

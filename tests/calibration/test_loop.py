@@ -308,3 +308,15 @@ def test_names_must_be_non_empty_strings(names: list[Any]) -> None:
     bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
     with pytest.raises(ValueError, match=r"names: .* is not a parameter name"):
         calibrate(lambda w: -np.sum(w**2, axis=1), bounds, names, _small(), progress=False)
+
+
+def test_none_for_a_failed_run_is_nan_as_before() -> None:
+    """[1.0, None] (None: a failed run) was read as [1.0, NaN]; refusing every non-float
+    array broke it (review, session 24)."""
+    from decimal import Decimal
+
+    from susp_bo.calibration.loop_step import evaluate_checked
+
+    w = np.zeros((3, 2))
+    out = evaluate_checked(lambda w: [1.0, None, Decimal("2.5")], w)
+    assert out[0] == 1.0 and np.isnan(out[1]) and out[2] == 2.5

@@ -185,3 +185,32 @@ def test_a_failed_check_on_a_noisy_log_l_says_noisy_not_a_direction() -> None:
     assert "repeat_difference_nats" in steady.to_dict(np.array([[0.0], [1.0]]))
     passed = _failed_check(np.array([-0.1, 0.2, -0.3, 0.1]))
     assert repeated_check(passed, lambda w: 1 / 0, points) is passed  # nothing evaluated
+
+
+def test_noise_the_surrogate_models_is_not_called_noisy_and_a_failed_repeat_is() -> None:
+    """With noise="learned" a repeat moves by about √2 σ: not news, so the check keeps its
+    direction; a repeat that fails where the first run succeeded is not repeatable."""
+    modelled = SurrogateCheck(
+        points_unit=np.full((4, 1), 0.5),
+        predicted=np.zeros(4),
+        predicted_sd=np.full(4, 0.2),
+        observed=np.array([-8.0, -17.0, -0.3, -12.0]),
+        tolerance_nats=1.0,
+        noise_sd=1.0,
+        repeat_difference_nats=1.5,
+    )
+    assert not modelled.noisy and modelled.verdict == "underconfident"
+    beyond = SurrogateCheck(**{**modelled.__dict__, "repeat_difference_nats": 5.0})
+    assert beyond.noisy and beyond.verdict == "noisy"
+    failed = SurrogateCheck(**{**modelled.__dict__, "repeat_difference_nats": math.inf})
+    assert failed.noisy and "failed (or gave ±inf) where it had succeeded" in failed.line()
+    assert failed.to_dict(np.array([[0.0], [1.0]]))["repeat_difference_nats"] is None
+
+
+def test_a_repeat_that_fails_makes_the_check_noisy() -> None:
+    from susp_bo.calibration.loop_step import repeated_check
+
+    check = _failed_check(np.array([-8.0, -17.0, -0.3, -12.0]))
+    points = np.array([[0.1], [0.2], [0.3], [0.4]])
+    repeated = repeated_check(check, lambda w: np.full(len(w), np.nan), points)
+    assert repeated.verdict == "noisy" and math.isinf(repeated.repeat_difference_nats)
