@@ -486,6 +486,7 @@ def calibrate(
         draws_sd=draws_sd,
         evaluated_unit=(x - b[0]) / (b[1] - b[0]),
         evaluated_ok=np.isfinite(y),
+        searched_in_box=boxed,
     )
     logger.info(reliability.sentence)
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)

@@ -92,6 +92,8 @@ Verdict = Literal["trusted", "not_trusted"]
 Reason = dict[str, Any]
 """One reason: ``code`` (str), ``message`` (str, plain words) and the numbers behind it."""
 
+NARROW_SHARE = 0.01
+"""A posterior whose widest sd is below this share of C_w needs a search box that follows it."""
 POOR_MIXING_R_HAT = 1.05
 """Largest split R-hat of a mixed sampler (``poor_mixing`` above it)."""
 
@@ -515,6 +517,7 @@ def assess(
     evaluated_unit: np.ndarray | None = None,
     evaluated_ok: np.ndarray | None = None,
     advice_for: AdviceFor = "python",
+    searched_in_box: bool = False,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -524,6 +527,10 @@ def assess(
         modes: separated modes the sampler found (``RandomWalkMetropolis.diagnostics``).
         sampler: the kernel whose draws are assessed ("random_walk" or "hmc"; the
             trusted sentence names HMC).
+        searched_in_box: the search ran in a box that follows the posterior (trust region
+            or local phase); when it did not and ``not_converged`` fires on a posterior under
+            :data:`NARROW_SHARE` of C_w wide, the reason carries ``posterior_width`` (its
+            widest sd as a share of C_w) and the advice names the trust region.
         advice_for: whose terms the sentence's advice is in (:mod:`.reliability_sentence`):
             "python" (the settings of :func:`~susp_bo.calibration.loop.calibrate`, the
             default) or "command_line" (a study: :meth:`Reliability.worded_for`).
@@ -559,6 +566,10 @@ def assess(
         multimodal(modes),
     ]
     reasons = sorted((r for r in found if r is not None), key=lambda r: ORDER.index(r["code"]))
+    width = float(np.max(np.std(u, axis=0))) if u.size else math.nan
+    for reason in reasons:  # a posterior EGO's global surrogate cannot resolve (probe, F4)
+        if reason["code"] == "not_converged" and not searched_in_box and width < NARROW_SHARE:
+            reason["posterior_width"] = width
     evidence: dict[str, Any] = {
         "budget": int(budget),
         "minimum_budget": requirement.minimum,

@@ -54,6 +54,8 @@ PYTHON_ADVICE = {
     "noisy": "let the surrogate learn the noise: CalibrationSettings(surrogate="
     'SurrogateSettings(noise="learned"))',
     "search_box_edge": _MORE,
+    "narrow": "the posterior is under 1 % of C_w wide, too narrow for a surrogate of all of "
+    "C_w: CalibrationSettings(trust_region=True) refines in a box that follows it; or " + _MORE,
     "poor_mixing": "rerun with more MCMC draws (CalibrationSettings(mcmc_samples=..., "
     "mcmc_chains=...))",
     "multimodal": "look at the pair plot; " + _MORE + " so that the search refines every "
@@ -86,6 +88,8 @@ def sentence(
     # a noisy log L defeats every other remedy (more budget cannot converge on noise)
     noisy = any(r.get("direction") == "noisy" for r in reasons)
     code = "noisy" if noisy else first["code"]
+    if code == "not_converged" and first.get("posterior_width") is not None:
+        code = "narrow" if "narrow" in table else code
     advice = table.get(code, "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),

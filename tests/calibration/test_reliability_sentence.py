@@ -65,3 +65,19 @@ def test_a_verdict_is_reworded_for_a_study_without_changing_anything_else() -> N
         python.reasons,
         python.evidence,
     )
+
+
+def test_a_posterior_too_narrow_for_a_global_surrogate_is_told_the_trust_region() -> None:
+    """A posterior 1e-4 of C_w wide came out exact but `not_converged`, advised "more
+    budget", where trust_region=True gives it `trusted` in 30 evaluations (outside probe,
+    session 24, F4)."""
+    narrow = {"code": "not_converged", "message": "m", "posterior_width": 2e-4}
+    evidence = {"budget": 200, "minimum_budget": 22}
+    python = sentence((narrow,), evidence, "python")
+    assert "CalibrationSettings(trust_region=True) refines in a box that follows it" in python
+    assert python.endswith(
+        "or rerun with a larger budget, CalibrationSettings(max_evaluations=400)."
+    )
+    assert sentence((narrow,), evidence, "command_line").endswith("--resume --budget 400.")
+    plain = {"code": "not_converged", "message": "m"}
+    assert "trust_region" not in sentence((plain,), evidence, "python")
