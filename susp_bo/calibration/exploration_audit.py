@@ -162,10 +162,11 @@ def run_audit(
     with torch_state(settings.num_threads):
         u, predicted, sd, noise = propose_audit(x, y, bounds, size, iteration, settings)
     best = float(np.nanmax(y))
-    values = evaluate_checked(evaluate, from_unit(u, bounds))
+    w = from_unit(u, bounds)
+    values = evaluate_checked(evaluate, w)
     audit = SurrogateCheck(u, predicted, sd, values, settings.check_tolerance, noise)
     found = unseen_mass(audit, best, q)
-    x, y = np.vstack([x, from_unit(u, bounds)]), np.concatenate([y, values])
+    x, y = np.vstack([x, w]), np.concatenate([y, values])
     bar.update(size)
     excess = audit.errors[np.isfinite(audit.errors)]
     record_iteration(

@@ -201,6 +201,7 @@ def not_converged(
     z: float = 2.0,
     uncertainty_tolerance: float = 0.3,
     draws_sd: float = math.nan,
+    posterior_width: float = math.nan,
 ) -> Reason | None:
     """``not_converged`` when the search did not reach the optimum (module docstring).
 
@@ -218,6 +219,9 @@ def not_converged(
             draws' mean sd[log L̃] counts as unexplored.
         draws_sd: mean sd[log L̃] (nats) over the reported posterior draws; NaN = not
             measured (the rule then looks only at the search).
+        posterior_width: the draws' widest sd as a share of C_w, for a search without a box
+            that follows the posterior (NaN otherwise); below :data:`NARROW_SHARE` the reason
+            carries it, and the advice names the trust region.
     """
     findings: list[str] = []
     reason: Reason = {"code": "not_converged"}
@@ -253,6 +257,8 @@ def not_converged(
         reason.update(draws_sd_nats=float(draws_sd))
     if not findings:
         return None
+    if posterior_width < NARROW_SHARE:  # too narrow for EGO's global surrogate (probe, F4)
+        reason["posterior_width"] = float(posterior_width)
     reason["message"] = "; ".join(findings)
     return reason
 
@@ -394,6 +400,8 @@ def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> 
     if check.verdict == "ok":
         return None
     e = check.errors
+    above = check.outside & (e > 0)
+    below = check.outside & (e < 0)
     if check.verdict == "noisy":
         return {
             "code": "surrogate_misfit",
@@ -405,17 +413,11 @@ def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> 
                 "be wider or narrower"
             ),
             "direction": "noisy",
-            "n_above": int(np.sum(check.outside & (e > 0))),
-            "n_below": int(np.sum(check.outside & (e < 0))),
+            "n_above": int(above.sum()),
+            "n_below": int(below.sum()),
             "max_abs_error_nats": check.max_abs_error,
-            "repeat_difference_nats": (  # null: a repeat failed where it had succeeded
-                check.repeat_difference_nats
-                if math.isfinite(check.repeat_difference_nats)
-                else None
-            ),
+            "repeat_difference_nats": check.repeat_difference_json,
         }
-    above = check.outside & (e > 0)
-    below = check.outside & (e < 0)
     parts = []
     if above.any():
         parts.append(
@@ -556,6 +558,9 @@ def assess(
             last_phase=last_phase,
             last_criterion=last_criterion,
             draws_sd=draws_sd,
+            posterior_width=(
+                math.nan if searched_in_box or not u.size else float(np.max(np.std(u, axis=0)))
+            ),
         ),
         below_expected_fit(best_log_likelihood, expected_at_truth),
         failed,
@@ -566,10 +571,6 @@ def assess(
         multimodal(modes),
     ]
     reasons = sorted((r for r in found if r is not None), key=lambda r: ORDER.index(r["code"]))
-    width = float(np.max(np.std(u, axis=0))) if u.size else math.nan
-    for reason in reasons:  # a posterior EGO's global surrogate cannot resolve (probe, F4)
-        if reason["code"] == "not_converged" and not searched_in_box and width < NARROW_SHARE:
-            reason["posterior_width"] = width
     evidence: dict[str, Any] = {
         "budget": int(budget),
         "minimum_budget": requirement.minimum,

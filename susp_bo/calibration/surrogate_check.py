@@ -174,6 +174,13 @@ class SurrogateCheck:
         modelled = 3.0 * math.sqrt(2.0) * float(np.max(np.asarray(self.noise_sd, dtype=float)))
         return bool(math.isinf(moved) or abs(moved) > max(REPEAT_TOLERANCE_NATS, modelled))
 
+    @property
+    def repeat_difference_json(self) -> float | None:
+        """``repeat_difference_nats`` for JSON: None where not finite (not repeated, or a
+        repeat failed where the first evaluation succeeded)."""
+        moved = self.repeat_difference_nats
+        return moved if math.isfinite(moved) else None
+
     def repeat_phrase(self) -> str:
         """How the repeat showed the noise, for messages."""
         if math.isinf(self.repeat_difference_nats):
@@ -217,12 +224,8 @@ class SurrogateCheck:
             "noise_sd": np.broadcast_to(self.noise_sd, self.predicted.shape).tolist(),
             **(
                 {}
-                if math.isnan(self.repeat_difference_nats)
-                else {  # null: a repeat failed where the first evaluation succeeded
-                    "repeat_difference_nats": self.repeat_difference_nats
-                    if math.isfinite(self.repeat_difference_nats)
-                    else None
-                }
+                if math.isnan(self.repeat_difference_nats)  # not repeated: no key
+                else {"repeat_difference_nats": self.repeat_difference_json}
             ),
         }
 

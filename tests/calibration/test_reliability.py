@@ -58,6 +58,14 @@ def test_not_converged_sub_rules() -> None:
     assert unexplored is not None and "0.80 nats > 0.3" in unexplored["message"]
     assert unexplored["draws_sd_nats"] == pytest.approx(0.8)
     assert not_converged(**_converged(draws_sd=0.1)) is None
+    # a posterior under 1 % of C_w wide, searched without a box, is marked (the advice then
+    # names the trust region); a wide one, or none measured, is not; nor does it fire alone
+    narrow = not_converged(**_converged(draws_sd=0.8, posterior_width=2e-4))
+    assert narrow is not None and narrow["posterior_width"] == pytest.approx(2e-4)
+    wide = not_converged(**_converged(draws_sd=0.8, posterior_width=0.2))
+    assert wide is not None and "posterior_width" not in wide
+    assert "posterior_width" not in unexplored
+    assert not_converged(**_converged(posterior_width=2e-4)) is None
     assert not_converged(**_converged(draws_sd=float("nan"))) is None
 
 
