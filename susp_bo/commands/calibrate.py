@@ -44,7 +44,11 @@ def config_from_arguments(args: argparse.Namespace) -> StudyConfig:
             if args.out:
                 config = dataclasses.replace(config, out=Path(args.out).resolve())
         else:
-            if target.suffix == ".toml" and target.is_file() and _is_readable_study(target):
+            if (
+                target.suffix == ".toml"
+                and target.is_file()
+                and _is_study(target, unreadable=False)
+            ):
                 raise UsageError(
                     f"DATA_DIR: {args.data_dir!r} given after the study file {str(target)!r}, "
                     "which names its own data (data = ...); drop DATA_DIR, or give a rig "
@@ -126,26 +130,21 @@ def _refuse_small_budget(config: StudyConfig, budget: int, design: int) -> None:
         raise UsageError(budget_message(budget, requirement))
 
 
-def _is_study(path: Path) -> bool:
+def _is_study(path: Path, unreadable: bool = True) -> bool:
     """A rig file has a [rig] table; any other .toml is read as a study file (so that a
-    study without its ``rig`` line is told ``rig: missing``, not how to call the command)."""
+    study without its ``rig`` line is told ``rig: missing``, not how to call the command).
+
+    Args:
+        path: the .toml.
+        unreadable: the answer for a file that does not parse (True: a study, so that
+            load_study_config reports the problem).
+    """
     import tomllib
 
     try:
         document = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return True  # let load_study_config report the problem
-    return not isinstance(document.get("rig"), dict)
-
-
-def _is_readable_study(path: Path) -> bool:
-    """A .toml that parses and is a study (has no [rig] table)."""
-    import tomllib
-
-    try:
-        document = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return False
+        return unreadable
     return not isinstance(document.get("rig"), dict)
 
 
