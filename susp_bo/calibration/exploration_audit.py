@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from scipy import stats
 from scipy.stats import qmc
 
 from susp_bo.calibration.design import from_unit, to_unit
@@ -44,13 +43,12 @@ from susp_bo.calibration.loop_step import (
 from susp_bo.calibration.result import IterationReport
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate_check import SurrogateCheck, observation_noise_sd
+from susp_bo.calibration.trust_region import posterior_reach
 
 logger = logging.getLogger(__name__)
 
 AUDIT_SHARE = 0.5
 """Share of the evaluations left that an audit spends."""
-AUDIT_LEVEL = 0.999
-"""Posterior reach: log L within ½ χ²_q(level) of the best value carries posterior mass."""
 AUDIT_CANDIDATES = 4096
 """Scrambled Sobol' candidates the maximin points are chosen from."""
 AUDIT_SEED_PURPOSE = 7
@@ -95,11 +93,6 @@ def audit_points(x_unit: np.ndarray, n: int, seed: int) -> np.ndarray:
         chosen.append(candidates[pick])
         gap = np.minimum(gap, np.linalg.norm(candidates - candidates[pick], axis=1))
     return np.array(chosen)
-
-
-def posterior_reach(q: int) -> float:
-    """½ χ²_q(:data:`AUDIT_LEVEL`) in nats: how far below the best log L mass still counts."""
-    return 0.5 * float(stats.chi2.ppf(AUDIT_LEVEL, q))
 
 
 def unseen_mass(check: SurrogateCheck, best_log_likelihood: float, q: int) -> np.ndarray:

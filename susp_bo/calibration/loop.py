@@ -93,7 +93,7 @@ from susp_bo.calibration.sampling import (
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck
-from susp_bo.calibration.trust_region import box_edge, to_global_unit
+from susp_bo.calibration.trust_region import box_edge, points_within_reach, to_global_unit
 from susp_bo.numerics import one_blas_thread
 from susp_bo.progress import progress_bar
 
@@ -153,10 +153,10 @@ def _check_design_values(y: np.ndarray) -> None:
 
 
 def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``box`` widened to hold the best evaluated point (physical units)."""
-    finite = np.isfinite(y)
-    best = x[finite][int(np.argmax(y[finite]))]
-    return np.stack([np.minimum(box[0], best), np.maximum(box[1], best)])
+    """``box`` widened to hold the best evaluated point and every point within reach of it
+    (:func:`.trust_region.points_within_reach`; physical units)."""
+    held = points_within_reach(x, y)
+    return np.stack([np.minimum(box[0], held.min(axis=0)), np.maximum(box[1], held.max(axis=0))])
 
 
 def _run_basin_phase(
@@ -480,7 +480,7 @@ def calibrate(
         ess=summary.ess,
         check=check,
         expected_at_truth=expected_at_truth,
-        box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names),
+        box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names, x=x, y=y),
         modes=modes,
         sampler=str(diag.get("sampler", "random_walk")),
         draws_sd=draws_sd,

@@ -38,7 +38,7 @@ from susp_bo.calibration.surrogate_check import (
     observation_noise_sd,
 )
 from susp_bo.calibration.surrogate_fit import Bowl, fit_surrogate
-from susp_bo.calibration.trust_region import next_box, training_mask
+from susp_bo.calibration.trust_region import next_box, points_within_reach, training_mask
 
 logger = logging.getLogger(__name__)
 
@@ -228,10 +228,12 @@ def propose_step(
         surrogate, settings, derived_seed(seed, iteration, 3)
     )
     if boxed:
-        finite = np.isfinite(y)
-        best = x[finite][int(np.argmax(y[finite]))]
-        moved = next_box(
-            candidates[:n_post].numpy(), box, bounds, best, settings.trust_region_half_width_sd
+        moved = next_box(  # a box holding every point within reach of the best (2nd modes)
+            candidates[:n_post].numpy(),
+            box,
+            bounds,
+            points_within_reach(x, y),
+            settings.trust_region_half_width_sd,
         )
         if moved is not None:
             logger.info("search box: %s", np.array2string(moved, precision=4))

@@ -56,7 +56,9 @@ Rules (each a pure function of numbers, testable alone):
   surrogate posterior against the simulator, so the result is not trusted on the
   surrogate's word alone.
 - ``search_box_edge`` (:func:`.trust_region.box_edge`): with a trust region, the
-  final posterior presses against an inner face of the search box, which cut it.
+  final posterior presses against an inner face of the search box, which cut it, or an
+  evaluation outside the box has a log L within ½ χ²_q(0.999) of the best (mass the box
+  left out, e.g. a second mode).
 - ``poor_mixing`` (:func:`poor_mixing`): split R-hat above ``r_hat_max`` (1.05) or
   bulk ESS below ``ess_min`` (400) on any parameter, in the draws reported (with the
   default sampler "auto", HMC was tried when the random walk found one mode and did

@@ -30,10 +30,37 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from scipy import stats
 
 from susp_bo.calibration.design import from_unit, to_unit
 
 Reason = dict
+
+REACH_LEVEL = 0.999
+"""A point whose log L is within ½ χ²_q(REACH_LEVEL) of the best holds posterior mass."""
+
+
+def posterior_reach(q: int) -> float:
+    """½ χ²_q(:data:`REACH_LEVEL`) in nats: how far below the best log L mass still counts."""
+    return 0.5 * float(stats.chi2.ppf(REACH_LEVEL, q))
+
+
+def points_within_reach(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The evaluations whose log L is within :func:`posterior_reach` of the best.
+
+    Args:
+        x: (n x q) evaluated parameters (any unit).
+        y: (n,) log L (nats); NaN for a failed run.
+
+    Returns:
+        (k x q) those rows of ``x`` (k >= 1 when any run succeeded, else 0).
+    """
+    y = np.asarray(y, dtype=np.float64)
+    finite = np.isfinite(y)
+    if not finite.any():
+        return np.asarray(x)[:0]
+    near = finite & (np.where(finite, y, -np.inf) >= y[finite].max() - posterior_reach(x.shape[1]))
+    return np.asarray(x)[near]
 
 
 def training_mask(
@@ -81,7 +108,7 @@ def next_box(
     draws_local: np.ndarray,
     box: np.ndarray,
     bounds: np.ndarray,
-    best: np.ndarray,
+    keep: np.ndarray,
     half_width_sd: float = 8.0,
     max_ratio: float = 0.5,
     pressure: float = 0.01,
@@ -92,7 +119,10 @@ def next_box(
         draws_local: (n x q) surrogate posterior draws in ``box``'s unit cube.
         box: (2 x q) current search box, physical units.
         bounds: (2 x q) admissible bounds C_w.
-        best: (q,) best evaluated point, physical units (always kept inside the box).
+        keep: (q,) or (k x q) evaluated points, physical units, always kept inside the box:
+            the best one, and every one whose log L is within reach of the best
+            (:func:`points_within_reach`) — evidence of posterior mass the surrogate's
+            draws may not show (a second mode the box would otherwise cut away).
         half_width_sd: half-width of a shrunk coordinate in posterior sd.
         max_ratio: a coordinate shrinks only to at most this fraction of its width.
         pressure: share of the draws in the 5 % strip at an inner face above which the box
@@ -106,8 +136,9 @@ def next_box(
     d = from_unit(np.asarray(draws_local, dtype=np.float64), box)
     centre = np.median(d, axis=0)
     sd = d.std(axis=0)
-    lo = np.minimum(centre - half_width_sd * sd, best)
-    hi = np.maximum(centre + half_width_sd * sd, best)
+    held = np.atleast_2d(np.asarray(keep, dtype=np.float64))
+    lo = np.minimum(centre - half_width_sd * sd, held.min(axis=0))
+    hi = np.maximum(centre + half_width_sd * sd, held.max(axis=0))
     pad = 0.05 * (hi - lo)
     lo, hi = lo - pad, hi + pad
     width = box[1] - box[0]
@@ -132,8 +163,15 @@ def box_edge(
     bounds: np.ndarray,
     names: Sequence[str],
     pressure: float = 0.01,
+    x: np.ndarray | None = None,
+    y: np.ndarray | None = None,
 ) -> Reason | None:
-    """``search_box_edge`` when the final posterior presses against an inner box face.
+    """``search_box_edge`` when the final box cut the posterior.
+
+    Two kinds of evidence: the final posterior presses against an inner box face, or an
+    evaluation *outside* the box has a log L within :func:`posterior_reach` of the best
+    (posterior mass the box left out, e.g. a second mode: no draw can press against a
+    face when the mass lies beyond it; outside probe, session 25).
 
     Args:
         draws_local: (n x q) final posterior draws in the box's unit cube.
@@ -141,22 +179,43 @@ def box_edge(
         bounds: (2 x q) admissible bounds C_w.
         names: (q,) parameter names.
         pressure: as in :func:`next_box`.
+        x: (m x q) evaluated parameters, physical units (None: not looked at).
+        y: (m,) their log L (nats), NaN for a failed run.
     """
     hit = (face_pressure(draws_local) > pressure) & _inner_faces(box, bounds)
-    if not hit.any():
+    findings: list[str] = []
+    reason: Reason = {"code": "search_box_edge"}
+    touched: set[str] = {names[k] for k in np.nonzero(hit.any(axis=0))[0]}
+    if hit.any():
+        parts = [
+            f"{names[k]} ({side} face {box[s, k]:.4g})"
+            for s, side in enumerate(("lower", "upper"))
+            for k in range(len(names))
+            if hit[s, k]
+        ]
+        findings.append(
+            "the posterior presses against the search box, which cut it: " + ", ".join(parts)
+        )
+    if x is not None and y is not None and len(y):
+        held = points_within_reach(np.asarray(x, dtype=np.float64), y)
+        tol = 1e-9 * (bounds[1] - bounds[0])
+        outside = np.any((held < box[0] - tol) | (held > box[1] + tol), axis=1)
+        if outside.any():
+            out = held[outside]
+            beyond = np.any((out < box[0] - tol) | (out > box[1] + tol), axis=0)
+            touched |= {names[k] for k in np.nonzero(beyond)[0]}
+            findings.append(
+                f"{int(outside.sum())} evaluation(s) outside the search box have log L within "
+                f"{posterior_reach(len(names)):.3g} nats of the best (beyond the box in "
+                + ", ".join(names[k] for k in np.nonzero(beyond)[0])
+                + "): the box left out posterior mass"
+            )
+            reason["evaluations_outside_box"] = int(outside.sum())
+    if not findings:
         return None
-    parts = [
-        f"{names[k]} ({side} face {box[s, k]:.4g})"
-        for s, side in enumerate(("lower", "upper"))
-        for k in range(len(names))
-        if hit[s, k]
-    ]
-    return {
-        "code": "search_box_edge",
-        "message": "the posterior presses against the search box, which cut it: "
-        + ", ".join(parts),
-        "parameters": sorted({names[k] for k in np.nonzero(hit.any(axis=0))[0]}),
-    }
+    reason["message"] = "; ".join(findings)
+    reason["parameters"] = sorted(touched)
+    return reason
 
 
 def to_global_unit(draws_local: np.ndarray, box: np.ndarray, bounds: np.ndarray) -> np.ndarray:

@@ -94,3 +94,27 @@ def test_a_narrow_second_mode_missed_by_an_early_stop_is_found_by_the_audit() ->
         float(np.mean(np.linalg.norm(before.draws.reshape(-1, 2) - [0.8, 0.75], axis=1) < 0.1))
         == 0.0
     )
+
+
+def test_a_trust_region_keeps_both_modes_of_the_needle() -> None:
+    """Review, session 24, then measured in session 25: with ``trust_region=True`` the
+    audit found the narrow mode, the box then followed the surrogate's draws onto it and
+    cut the broad mode away — `trusted` with all the draws in the narrow mode (exact share
+    0.5) on 5 of 5 seeds. The box now holds every evaluation within reach of the best log
+    L, and an evaluation within reach outside the final box is `search_box_edge`."""
+    settings = CalibrationSettings(
+        seed=3,
+        max_evaluations=200,
+        mcmc_chains=256,
+        mcmc_warmup=300,
+        mcmc_samples=600,
+        trust_region=True,
+    )
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    result = calibrate(_needle, bounds, ["x", "y"], settings, progress=False)
+    draws = result.draws.reshape(-1, 2)
+    share = float(np.mean(np.linalg.norm(draws - [0.8, 0.75], axis=1) < 0.1))
+    assert result.reliability.trusted is False or 0.4 < share < 0.6
+    assert 0.4 < share < 0.6 or "multimodal" in result.reliability.codes
+    assert result.search_box is not None
+    assert np.all(result.search_box[0] <= 0.3) and np.all(result.search_box[1] >= 0.75)

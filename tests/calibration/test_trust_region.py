@@ -18,6 +18,8 @@ from susp_bo.calibration.trust_region import (
     box_edge,
     face_pressure,
     next_box,
+    points_within_reach,
+    posterior_reach,
     to_global_unit,
     training_mask,
 )
@@ -92,6 +94,40 @@ def test_faces_on_the_admissible_bounds_never_grow_nor_flag() -> None:
     draws = draws[(draws >= 0).all(1) & (draws <= 1).all(1)]
     new = next_box(draws, box, bounds, np.array([0.1, 15.0]), max_ratio=0.0)
     assert new is None
+    assert box_edge(draws, box, bounds, ["a", "b"]) is None
+
+
+def test_points_within_reach_are_those_near_the_best_log_l() -> None:
+    x = np.array([[0.1, 0.1], [0.5, 0.5], [0.9, 0.9], [0.2, 0.8]])
+    y = np.array([-1.0, np.nan, -7.0, -8.5])  # reach for q = 2: 6.91 nats
+    assert posterior_reach(2) == pytest.approx(6.9078, abs=1e-3)
+    assert points_within_reach(x, y).tolist() == [[0.1, 0.1], [0.9, 0.9]]
+    assert points_within_reach(x, np.full(4, np.nan)).shape == (0, 2)
+
+
+def test_next_box_keeps_every_point_within_reach_a_second_mode_included() -> None:
+    """The surrogate's draws sit on one mode; an evaluation far away is nearly as good:
+    the box must not cut it away (it did when only the best point was kept)."""
+    box = np.array([[0.0, 0.0], [1.0, 1.0]])
+    centre, sd = np.array([0.8, 0.75]), np.array([0.016, 0.016])
+    keep = np.array([[0.8, 0.75], [0.3, 0.3]])
+    new = next_box(_draws(centre, sd, box), box, box, keep)
+    assert new is None or np.all((new[0] <= 0.3) & (new[1] >= 0.8))
+    only_best = next_box(_draws(centre, sd, box), box, box, keep[0])
+    assert only_best is not None and np.all(only_best[0] > 0.6)  # the old box: mode 2 cut
+
+
+def test_box_edge_flags_an_evaluation_within_reach_outside_the_box() -> None:
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    box = np.array([[0.7, 0.6], [0.9, 0.9]])
+    draws = _draws(np.array([0.8, 0.75]), np.array([0.016, 0.016]), box)  # well inside
+    x = np.array([[0.8, 0.75], [0.3, 0.3], [0.1, 0.9]])
+    far = box_edge(draws, box, bounds, ["a", "b"], x=x, y=np.array([8.3, 5.0, -20.0]))
+    assert far is not None and far["code"] == "search_box_edge"
+    assert far["evaluations_outside_box"] == 1 and far["parameters"] == ["a", "b"]
+    assert "left out posterior mass" in far["message"]
+    # beyond the reach (8.3 - 6.9): no evidence of mass outside; nor without evaluations
+    assert box_edge(draws, box, bounds, ["a", "b"], x=x, y=np.array([8.3, 1.0, -20.0])) is None
     assert box_edge(draws, box, bounds, ["a", "b"]) is None
 
 
