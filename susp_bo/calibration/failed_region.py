@@ -17,6 +17,45 @@ Reason = dict[str, Any]
 """One reason of the verdict (as :data:`.reliability.Reason`)."""
 
 
+SCATTER_NEIGHBOURS = 5
+"""Neighbours looked at around each evaluation by :func:`failures_scattered`."""
+SCATTER_MIN_FAILURES = 5
+"""Fewer failed evaluations than this are never called scattered (too few to tell)."""
+SCATTER_MARGIN = 0.15
+"""Failures are scattered when a failed run's neighbours fail at most this much more often
+than a successful run's neighbours."""
+
+
+def failures_scattered(evaluated_unit: np.ndarray, evaluated_ok: np.ndarray) -> bool:
+    """Whether the failed evaluations are scattered among the successful ones.
+
+    Failures of one region (a solver that diverges beyond some stiffness) have failed
+    neighbours; failures that strike anywhere (a solver that fails at random, a licence
+    server, a flaky file system) do not: the share of failed runs among the
+    :data:`SCATTER_NEIGHBOURS` nearest other evaluations (unit cube of C_w) is then about the
+    same around a failed run as around a successful one. Scattered: at least
+    :data:`SCATTER_MIN_FAILURES` failures and that share higher by at most
+    :data:`SCATTER_MARGIN` around the failed runs. Narrowing the admissible interval does not
+    help such failures; making the simulations run does (outside probe, session 24: 20 %
+    of runs failing at random, told to "narrow the admissible interval").
+
+    Args:
+        evaluated_unit: (n x q) evaluated points, unit cube of C_w.
+        evaluated_ok: (n,) True where log L came back finite.
+    """
+    ok = np.asarray(evaluated_ok, dtype=bool)
+    n = ok.size
+    k = min(SCATTER_NEIGHBOURS, n - 1)
+    if int(np.sum(~ok)) < SCATTER_MIN_FAILURES or int(np.sum(ok)) < SCATTER_MIN_FAILURES:
+        return False
+    x = np.asarray(evaluated_unit, dtype=np.float64)
+    d = ((x[:, None, :] - x[None, :, :]) ** 2).sum(-1)  # elementwise: no BLAS
+    np.fill_diagonal(d, np.inf)
+    neighbours = np.argsort(d, axis=1, kind="stable")[:, :k]
+    failed_share = np.mean(~ok[neighbours], axis=1)
+    return bool(failed_share[~ok].mean() - failed_share[ok].mean() <= SCATTER_MARGIN)
+
+
 def failed_region(
     draws_unit: np.ndarray,
     evaluated_unit: np.ndarray,
@@ -81,12 +120,21 @@ def failed_region(
         )
     if not findings:
         return None, evidence
+    scattered = failures_scattered(evaluated_unit, ok)
+    where = (
+        " (the failures are scattered among successful runs, not one region: a failure "
+        "that strikes anywhere, not a part of C_w where the model cannot run)"
+        if scattered
+        else ""
+    )
     reason: Reason = {
         "code": "failed_region",
         "message": (
             " and ".join(findings) + ": there the posterior rests on the stand-in value the "
-            "surrogate gives a failed simulation (the lowest log L seen), not on the model"
+            "surrogate gives a failed simulation (the lowest log L seen), not on the model" + where
         ),
         **evidence,
     }
+    if scattered:
+        reason["scattered"] = True
     return reason, evidence

@@ -31,6 +31,9 @@ COMMAND_LINE_ADVICE = {
     "surrogate_unchecked": "rerun with check points ([budget] check_points)",
     "search_box_edge": "rerun with --resume --budget {more}",
     "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
+    "failed_scattered": "make the failing simulations run (the log and evaluations.sqlite "
+    "name them; narrowing the admissible interval will not avoid failures that strike "
+    "anywhere), then rerun",
     "noisy": "make the evaluations repeatable (the same parameters must give the same log "
     "L), then rerun",
     "multimodal": "look at the pair plot; rerun with --resume --budget {more} so that the "
@@ -58,6 +61,8 @@ PYTHON_ADVICE = {
     "C_w: CalibrationSettings(trust_region=True) refines in a box that follows it; or " + _MORE,
     "poor_mixing": "rerun with more MCMC draws (CalibrationSettings(mcmc_samples=..., "
     "mcmc_chains=...))",
+    "failed_scattered": "make the failing evaluations run (result.X where result.y is NaN; "
+    "narrowing the bounds will not avoid failures that strike anywhere), then rerun",
     "multimodal": "look at the pair plot; " + _MORE + " so that the search refines every "
     "mode; modes that persist mean the data do not identify the parameters uniquely",
 }
@@ -85,9 +90,11 @@ def sentence(
     first = reasons[0]
     budget = int(evidence.get("budget", 0))
     table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
-    # a noisy log L defeats every other remedy (more budget cannot converge on noise)
+    # a noisy log L, or failures that strike anywhere, defeat every other remedy (more
+    # budget cannot converge on noise, nor on stand-in values scattered through the data)
     noisy = any(r.get("direction") == "noisy" for r in reasons)
-    code = "noisy" if noisy else first["code"]
+    scattered = any(r.get("code") == "failed_region" and r.get("scattered") for r in reasons)
+    code = "noisy" if noisy else "failed_scattered" if scattered else first["code"]
     if code == "not_converged" and first.get("posterior_width") is not None:
         code = "narrow" if "narrow" in table else code
     advice = table.get(code, "rerun with a larger budget").format(

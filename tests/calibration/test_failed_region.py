@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from susp_bo.calibration.failed_region import failed_region
+from susp_bo.calibration.failed_region import failed_region, failures_scattered
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 
 
@@ -25,6 +25,7 @@ def test_failed_region_fires_on_failed_check_points_or_draws_nearest_to_failures
     assert reason is not None and reason["code"] == "failed_region"
     assert 0.3 < evidence["draws_near_failed"] < 0.45  # a > ~0.65 of the unit square
     assert "nearer to a failed evaluation" in reason["message"]
+    assert "scattered" not in reason and "scattered" not in reason["message"]  # one region
     # no failure at all: nothing to say, and no share measured
     assert failed_region(spread, x, np.ones(len(x), bool), None) == (
         None,
@@ -37,3 +38,21 @@ def test_failed_region_fires_on_failed_check_points_or_draws_nearest_to_failures
     reason, evidence = failed_region(left, x, np.ones(len(x), bool), check)
     assert reason is not None and "1 of the 4 held-out check simulations" in reason["message"]
     assert evidence["failed_check_points"] == 1
+
+
+def test_failures_that_strike_anywhere_are_told_apart_from_a_failed_region() -> None:
+    """Outside probe, session 24: 20 % of the runs failed at random and the advice was to
+    narrow the admissible interval, which cannot avoid them."""
+    rng = np.random.default_rng(1)
+    x = rng.uniform(0.0, 1.0, size=(200, 2))
+    anywhere = rng.uniform(size=200) > 0.2  # 20 % fail wherever they are
+    assert failures_scattered(x, anywhere)
+    assert not failures_scattered(x, x[:, 0] < 0.8)  # a region: a > 0.8
+    assert not failures_scattered(x, np.linalg.norm(x - 0.5, axis=1) < 0.45)  # a ring
+    few = np.ones(200, bool)
+    few[[3, 50, 120, 180]] = False  # 4 failures: too few to tell
+    assert not failures_scattered(x, few)
+    draws = rng.normal([0.5, 0.5], 0.2, size=(1000, 2))
+    reason, _ = failed_region(draws, x, anywhere, None)
+    assert reason is not None and reason["scattered"] is True
+    assert "scattered among successful runs" in reason["message"]

@@ -81,3 +81,23 @@ def test_a_posterior_too_narrow_for_a_global_surrogate_is_told_the_trust_region(
     assert sentence((narrow,), evidence, "command_line").endswith("--resume --budget 400.")
     plain = {"code": "not_converged", "message": "m"}
     assert "trust_region" not in sentence((plain,), evidence, "python")
+
+
+def test_scattered_failures_lead_the_advice_whichever_reason_comes_first() -> None:
+    """Failures that strike anywhere poison the surrogate with stand-in values: more budget
+    (the first reason's advice) cannot fix that, nor can narrower bounds."""
+    reasons = (
+        {"code": "not_converged", "message": "m"},
+        {"code": "failed_region", "message": "f", "scattered": True},
+    )
+    line = sentence(reasons, {"budget": 200})
+    assert line.endswith(
+        "make the failing simulations run (the log and evaluations.sqlite name them; "
+        "narrowing the admissible interval will not avoid failures that strike anywhere), "
+        "then rerun."
+    )
+    assert "make the failing evaluations run (result.X where result.y is NaN" in sentence(
+        reasons, {"budget": 200}, advice_for="python"
+    )
+    region = ({"code": "failed_region", "message": "f"},)
+    assert "narrow the admissible interval" in sentence(region, {"budget": 200})
