@@ -253,8 +253,8 @@ def not_converged(
     if math.isfinite(draws_sd) and draws_sd > uncertainty_tolerance:
         findings.append(
             f"the surrogate is unsure where the reported posterior lies (mean sd of log L "
-            f"over its draws {draws_sd:.2f} nats > {uncertainty_tolerance:g}): no evaluation "
-            "checked that region"
+            f"over its draws {draws_sd:.2f} nats > {uncertainty_tolerance:g}): the evaluations "
+            "there are too few to pin log L down"
         )
         reason.update(draws_sd_nats=float(draws_sd))
     if not findings:

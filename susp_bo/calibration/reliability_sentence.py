@@ -72,10 +72,12 @@ PYTHON_ADVICE = {
 def sentence(
     reasons: Sequence[Mapping[str, Any]],
     evidence: Mapping[str, Any],
-    advice_for: AdviceFor = "command_line",
+    advice_for: AdviceFor,
 ) -> str:
     """One plain sentence: what is wrong first (or why it is trusted), then what to do, in
-    the terms of ``advice_for`` (module docstring)."""
+    the terms of ``advice_for`` (module docstring; no default: the caller says whom it
+    advises — session 24's review found this default and :func:`.reliability.assess`'s
+    disagreeing)."""
     if not reasons:
         gap = float(evidence.get("optimum_gap_nats", math.nan))
         where = "above" if gap < 0 else "below"

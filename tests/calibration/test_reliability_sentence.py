@@ -8,8 +8,8 @@ from susp_bo.calibration.reliability_sentence import sentence
 
 def test_trusted_sentence_names_hmc_when_its_draws_were_assessed() -> None:
     evidence = {"optimum_gap_nats": 0.4, "check_points": 8, "r_hat_max": 1.012, "ess_min": 900}
-    walk = sentence((), {**evidence, "sampler": "random_walk"})
-    hmc = sentence((), {**evidence, "sampler": "hmc"})
+    walk = sentence((), {**evidence, "sampler": "random_walk"}, "command_line")
+    hmc = sentence((), {**evidence, "sampler": "hmc"}, "command_line")
     assert walk.startswith("Trusted: the search converged (best log L 0.40 nats below")
     assert "the MCMC mixed (R-hat <= 1.012, ESS >= 900)" in walk
     assert "the MCMC mixed (HMC, R-hat <= 1.012, ESS >= 900)" in hmc
@@ -20,13 +20,15 @@ def test_not_trusted_sentence_gives_the_first_reason_its_advice_and_the_others()
         {"code": "poor_mixing", "message": "the MCMC did not mix: R-hat 1.3 > 1.05 on a"},
         {"code": "multimodal", "message": "m"},
     )
-    text = sentence(reasons, {"budget": 60, "minimum_budget": 51})
+    text = sentence(reasons, {"budget": 60, "minimum_budget": 51}, "command_line")
     assert text == (
         "Not trusted: the MCMC did not mix: R-hat 1.3 > 1.05 on a (also: multimodal); "
         "rerun with more MCMC draws ([mcmc] draws, chains)."
     )
     small = sentence(
-        ({"code": "budget_too_small", "message": "b"},), {"budget": 40, "minimum_budget": 51}
+        ({"code": "budget_too_small", "message": "b"},),
+        {"budget": 40, "minimum_budget": 51},
+        "command_line",
     )
     assert small == (  # --resume: a plain rerun into the folder is refused (it holds a study)
         "Not trusted: b; rerun with --resume --budget 51 or more (the evaluations already "
@@ -90,7 +92,7 @@ def test_scattered_failures_lead_the_advice_whichever_reason_comes_first() -> No
         {"code": "not_converged", "message": "m"},
         {"code": "failed_region", "message": "f", "scattered": True},
     )
-    line = sentence(reasons, {"budget": 200})
+    line = sentence(reasons, {"budget": 200}, "command_line")
     assert line.endswith(
         "make the failing simulations run (the log and evaluations.sqlite name them; "
         "narrowing the admissible interval will not avoid failures that strike anywhere), "
@@ -100,4 +102,4 @@ def test_scattered_failures_lead_the_advice_whichever_reason_comes_first() -> No
         reasons, {"budget": 200}, advice_for="python"
     )
     region = ({"code": "failed_region", "message": "f"},)
-    assert "narrow the admissible interval" in sentence(region, {"budget": 200})
+    assert "narrow the admissible interval" in sentence(region, {"budget": 200}, "command_line")
