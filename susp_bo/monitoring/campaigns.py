@@ -29,6 +29,7 @@ results folder.
 from __future__ import annotations
 
 import datetime as dt
+import logging
 import re
 import tomllib
 from collections.abc import Mapping
@@ -38,6 +39,8 @@ from typing import Any
 
 from susp_bo.calibration.study_inputs import import_hint
 from susp_bo.data.measured import RUN_SUFFIXES, MeasuredDataError, load_run, run_paths
+
+logger = logging.getLogger(__name__)
 
 MANIFEST_NAME = "campaign.toml"
 _MANIFEST_KEYS = ("vehicle", "date", "line")
@@ -353,4 +356,22 @@ def discover_campaigns(folder: str | Path) -> list[Campaign]:
                 "their runs into one folder (one campaign = one vehicle on one date)"
             )
         seen[campaign.campaign_id] = campaign
+    _warn_future_dates(campaigns)
     return sorted(campaigns, key=lambda c: (c.vehicle, c.date))
+
+
+def _warn_future_dates(campaigns: list[Campaign], today: dt.date | None = None) -> None:
+    """A warning (not a refusal: a result must not depend on the day it is computed) for
+    campaigns dated after ``today``: a mistyped year would put a campaign last in its
+    vehicle's history, where it sets the alarm state."""
+    today = dt.date.today() if today is None else today
+    for campaign in campaigns:
+        if campaign.date > today:
+            logger.warning(
+                "%s: campaign date %s is after today (%s): a mistyped date? Campaigns are "
+                "followed in date order, so this one counts as %s's latest",
+                campaign.folder,
+                campaign.date.isoformat(),
+                today.isoformat(),
+                campaign.vehicle,
+            )

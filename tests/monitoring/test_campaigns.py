@@ -250,3 +250,18 @@ def test_a_campaign_toml_in_a_parent_folder_is_refused(tmp_path: Path, parent: s
     message = str(raised.value)
     assert message.startswith(f"{stray}: a campaign.toml applies only to the measured runs")
     assert f"not inherited by the campaign folders below it ({campaign})" in message
+
+
+def test_a_campaign_dated_after_today_is_warned_about_not_refused(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A mistyped year (2062 for 2026) would make a campaign its vehicle's latest, where it
+    sets the alarm state. Not refused: a result must not depend on the day it is computed."""
+    _campaign(tmp_path / "ok", {}, manifest='vehicle = "A"\ndate = 2020-02-01\n')
+    _campaign(tmp_path / "typo", {}, manifest='vehicle = "A"\ndate = 9999-02-01\n')
+    with caplog.at_level("WARNING", logger="susp_bo.monitoring.campaigns"):
+        campaigns = discover_campaigns(tmp_path)
+    assert [c.date.year for c in campaigns] == [2020, 9999]
+    warned = [r.getMessage() for r in caplog.records]
+    assert len(warned) == 1 and "campaign date 9999-02-01 is after today" in warned[0]
+    assert "typo" in warned[0] and "mistyped" in warned[0]
