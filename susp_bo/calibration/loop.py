@@ -48,12 +48,11 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import numpy as np
 import torch
 
-from susp_bo.calibration.basin_search import ClimbReport, basin_phase
+from susp_bo.calibration.basin_search import ClimbReport
 from susp_bo.calibration.budget import BudgetTooSmallError, budget_message, budget_requirement
 from susp_bo.calibration.design import (
     check_bounds,
@@ -63,8 +62,9 @@ from susp_bo.calibration.design import (
     to_unit,
 )
 from susp_bo.calibration.exploration_audit import audit_size, run_audit
-from susp_bo.calibration.iteration_record import PhaseRecorder, record_iteration
-from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator, local_search
+from susp_bo.calibration.iteration_record import record_iteration
+from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator
+from susp_bo.calibration.loop_phases import run_basin_phase, run_local_phase
 from susp_bo.calibration.loop_step import (
     FINAL_ITERATION,
     Evaluate,
@@ -91,7 +91,6 @@ from susp_bo.calibration.sampling import (
     surrogate_log_likelihood,
 )
 from susp_bo.calibration.settings import CalibrationSettings
-from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 from susp_bo.calibration.trust_region import box_edge, points_within_reach, to_global_unit
 from susp_bo.numerics import one_blas_thread
@@ -157,84 +156,6 @@ def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     (:func:`.trust_region.points_within_reach`; physical units)."""
     held = points_within_reach(x, y)
     return np.stack([np.minimum(box[0], held.min(axis=0)), np.maximum(box[1], held.max(axis=0))])
-
-
-def _run_basin_phase(
-    evaluate: Evaluate,
-    bounds: np.ndarray,
-    x: np.ndarray,
-    y: np.ndarray,
-    main_budget: int,
-    iteration: int,
-    settings: CalibrationSettings,
-    history: list[IterationReport],
-    on_iteration: Callable[[IterationReport], None] | None,
-    bar: Any,
-) -> tuple[np.ndarray, np.ndarray, int, list[ClimbReport]]:
-    """The basin phase (:mod:`.basin_search`) on C_w; its runs join the data."""
-    data = PhaseRecorder(x, y, iteration, history, on_iteration, bar)
-
-    def fit(x_unit: np.ndarray, values: np.ndarray) -> Surrogate:
-        # the same data as (x_unit, values), as evaluated (no unit-cube round trip)
-        return fit_in_box(data.x, data.y, bounds, settings, data.iteration + 1)
-
-    caller = (torch.get_num_threads(), torch.get_default_dtype())
-
-    def run(u: np.ndarray) -> np.ndarray:
-        w = from_unit(u, bounds)
-        with torch_state(*caller):  # evaluate sees the caller's torch state, as elsewhere
-            values = evaluate_checked(evaluate, w)
-        finite = values[np.isfinite(values)]
-        data.add("basin", w, values, float(finite.max()) if finite.size else math.nan)
-        return values
-
-    with torch_state(settings.num_threads):
-        climbs = basin_phase(
-            to_unit(x, bounds),
-            y,
-            int(settings.basin.budget_fraction * (main_budget - x.shape[0])),
-            settings.batch_size,
-            settings.basin,
-            fit,
-            run,
-            lambda: derived_seed(settings.seed, data.iteration + 1, 6),
-            settings.acquisition_restarts,
-            settings.acquisition_raw_samples,
-        )
-    for report in climbs:
-        logger.info(
-            "basin search: climbed from log L %.6g to %.6g in %d evaluations (%s)",
-            report.start_log_likelihood,
-            report.end_log_likelihood,
-            report.n_evaluations,
-            report.stop_reason,
-        )
-    return data.x, data.y, data.iteration, climbs
-
-
-def _run_local_phase(
-    evaluate: SpectraEvaluator,
-    bounds: np.ndarray,
-    x: np.ndarray,
-    y: np.ndarray,
-    main_budget: int,
-    iteration: int,
-    settings: CalibrationSettings,
-    history: list[IterationReport],
-    on_iteration: Callable[[IterationReport], None] | None,
-    bar: Any,
-) -> tuple[np.ndarray, np.ndarray, LocalSearchResult, int]:
-    """The local phase (:mod:`.local_search`) from the best point; its runs join the data."""
-    finite = np.isfinite(y)
-    start = x[finite][int(np.argmax(y[finite]))]
-    cap = int(settings.local_search_fraction * (main_budget - x.shape[0]))
-    data = PhaseRecorder(x, y, iteration, history, on_iteration, bar)
-
-    def record(w: np.ndarray, values: np.ndarray, gain: float) -> None:
-        data.add("local", w, values, gain)
-
-    result = local_search(evaluate, bounds, start, cap, on_evaluations=record)
-    return data.x, data.y, result, data.iteration
 
 
 @one_blas_thread()  # main-process BLAS (log L, surrogate, chains) core-count independent
@@ -380,14 +301,14 @@ def calibrate(
         if settings.basin_search and not basins_done and phase == "refine":
             basins_done = True
             n_before = x.shape[0]
-            x, y, iteration, new_climbs = _run_basin_phase(
+            x, y, iteration, new_climbs = run_basin_phase(
                 evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
             )
             climbs.extend(new_climbs)
             if x.shape[0] > n_before:
                 continue
         if wants_local and local is None and phase == "refine":
-            x, y, local, iteration = _run_local_phase(
+            x, y, local, iteration = run_local_phase(
                 evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
             )
             box = from_unit(local.box(settings.trust_region_half_width_sd), b)
