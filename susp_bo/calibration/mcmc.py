@@ -76,6 +76,9 @@ class RandomWalkMetropolis(VectorisedKernel):
         site: name of the parameter in the params dict.
         jump_probability: per chain and step, the probability of a mode jump once
             separated modes were found half-way through warm-up (0 = never look).
+        mixture: a frozen mixture proposal over modes found beforehand (K components in
+            q dimensions), jumped with from the first step; none is then planned
+            half-way through warm-up. Needs ``jump_probability`` > 0.
     """
 
     def __init__(
@@ -89,6 +92,7 @@ class RandomWalkMetropolis(VectorisedKernel):
         seed: int = 0,
         site: str = "w",
         jump_probability: float = 0.1,
+        mixture: MixtureProposal | None = None,
     ) -> None:
         init = torch.as_tensor(initial_params, dtype=torch.float64)
         if not 0.0 <= jump_probability < 1.0:
@@ -97,6 +101,12 @@ class RandomWalkMetropolis(VectorisedKernel):
         if init.ndim != 2 or init.shape[0] < 1:
             raise ValueError(f"initial_params: shape {tuple(init.shape)}, expected (n_chains x q)")
         q = init.shape[1]
+        if mixture is not None and (jump_probability == 0.0 or mixture.means.shape[1] != q):
+            raise ValueError(
+                f"mixture: {mixture.means.shape[1]}-D components with jump_probability "
+                f"{jump_probability}, expected {q}-D components and jump_probability > 0"
+            )
+        self._given_mixture = mixture
         self.potential_fn = potential_fn
         self.site = site
         self.seed = int(seed)
@@ -132,7 +142,7 @@ class RandomWalkMetropolis(VectorisedKernel):
         self._window_count = 0
         self._accepted = 0.0
         self._proposed = 0
-        self._mixture: MixtureProposal | None = None
+        self._mixture: MixtureProposal | None = self._given_mixture
         self._jumps_proposed = 0
         self._jumps_accepted = 0.0
         self._state = self._init
@@ -149,7 +159,8 @@ class RandomWalkMetropolis(VectorisedKernel):
         x = params[self.site]
         if x is not self._state:
             self._state, self._potential = x, self._evaluate(x)
-        if self._t == self.warmup_steps // 2 and self.jump_probability > 0.0:
+        planned = self._given_mixture is None and self.jump_probability > 0.0
+        if planned and self._t == self.warmup_steps // 2:
             self._plan_jumps(x)
         noise = torch.randn(x.shape, generator=self._generator, dtype=torch.float64)
         scale = self._base * math.exp(self._log_scale)

@@ -13,7 +13,12 @@ from scipy.stats import multivariate_normal
 
 from susp_bo.calibration.design import from_unit, to_unit
 from susp_bo.calibration.mcmc import RandomWalkMetropolis, chain_diagnostics, run_vectorized
-from susp_bo.calibration.mode_jumps import MixtureProposal, find_modes, modes_chains_stayed_in
+from susp_bo.calibration.mode_jumps import (
+    MixtureProposal,
+    find_modes,
+    modes_chains_stayed_in,
+    stuck_modes,
+)
 from susp_bo.calibration.test_functions import TARGETS
 
 
@@ -139,6 +144,11 @@ def test_with_one_mode_the_draws_are_bit_identical_to_the_kernel_without_jumps()
     assert torch.equal(runs[0], runs[1])
     with pytest.raises(ValueError, match="jump_probability"):
         RandomWalkMetropolis(potential, starts, jump_probability=1.0)
+    mixture = MixtureProposal.of(starts, [torch.arange(32), torch.arange(32, 64)])
+    with pytest.raises(ValueError, match="mixture: 3-D components with jump_probability 0"):
+        RandomWalkMetropolis(potential, starts, jump_probability=0.0, mixture=mixture)
+    with pytest.raises(ValueError, match="expected 2-D components"):
+        RandomWalkMetropolis(potential, starts[:, :2], mixture=mixture)
 
 
 def test_chains_left_in_a_mode_the_jumps_never_saw_are_counted() -> None:
@@ -151,3 +161,34 @@ def test_chains_left_in_a_mode_the_jumps_never_saw_are_counted() -> None:
     assert modes_chains_stayed_in(torch.cat([main, few])) == 2
     assert len(find_modes(torch.cat([main, few])[:, -1, :])) == 1  # the least share: unseen
     assert modes_chains_stayed_in(main) == 1  # one Gaussian cloud is one mode
+
+
+def test_clusters_a_chain_moved_between_are_one_mode() -> None:
+    """A curved mode's arms can split the last positions (the exact curved 5-D target: three
+    clusters on two of three seeds); chains that went from one cluster to another join them.
+    Chains that never left their cluster keep it apart."""
+    generator = torch.Generator().manual_seed(1)
+    main = 0.8 + 0.016 * torch.randn(500, 50, 2, generator=generator, dtype=torch.float64)
+    few = 0.3 + 0.08 * torch.randn(7, 50, 2, generator=generator, dtype=torch.float64)
+    apart = torch.cat([main, few])
+    assert [len(c) for c in stuck_modes(apart)] == [500, 7]
+    assert torch.equal(stuck_modes(apart)[1], torch.arange(500, 507))
+    moved = apart.clone()
+    moved[500, :10] = main[0, :10]  # one chain began its draws in the other cluster
+    assert [len(c) for c in stuck_modes(moved)] == [507]
+    moved = apart.clone()
+    moved[3, 27] = few[0, 27]  # a visit half-way through counts too (draw 27: a checkpoint)
+    assert modes_chains_stayed_in(moved) == 1
+
+
+def test_a_mixture_of_chains_takes_each_modes_covariance_from_all_its_draws() -> None:
+    generator = torch.Generator().manual_seed(2)
+    draws = torch.randn(12, 40, 3, generator=generator, dtype=torch.float64)
+    draws[8:] = 5.0 + 0.2 * draws[8:]
+    modes = [torch.arange(8), torch.arange(8, 12)]
+    mixture = MixtureProposal.of_chains(draws, modes, inflation=1.5)
+    for k, c in enumerate(modes):
+        pooled = draws[c].reshape(-1, 3)
+        torch.testing.assert_close(mixture.means[k], pooled.mean(0))
+        cov = mixture.chols[k] @ mixture.chols[k].T
+        torch.testing.assert_close(cov, torch.cov(pooled.T) * 2.25)

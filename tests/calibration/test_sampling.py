@@ -1,19 +1,27 @@
 """The surrogate posterior's sampler choice: "auto" keeps the random walk where it mixed
-(bit for bit) and switches to reflective HMC where it did not, and says which it used."""
+(bit for bit), runs a mode-jumping pass where its chains stayed in separated modes and
+reflective HMC where they stayed in one, and says which it used."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
 import torch
 
-from susp_bo.calibration.mcmc import chain_diagnostics
+from susp_bo.calibration.mcmc import RandomWalkMetropolis, chain_diagnostics, run_vectorized
+from susp_bo.calibration.mode_jumps import MixtureProposal, stuck_modes
 from susp_bo.calibration.sampling import (
     HMC_CHAINS,
+    MODE_PASS_JUMP_PROBABILITY,
+    MODE_PASS_SEED_OFFSET,
+    initial_positions,
     mean_sd_at_draws,
     sample_surrogate_posterior,
+    surrogate_potential,
 )
 from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings
 from susp_bo.calibration.surrogate_fit import fit_surrogate
@@ -40,6 +48,131 @@ def _surrogate(log_l: Callable[[np.ndarray], np.ndarray], seed: int) -> Surrogat
     return fit_surrogate(x, log_l(x), SurrogateSettings(), seed=0)
 
 
+_BROAD, _NARROW = torch.tensor([0.3, 0.3]), torch.tensor([0.8, 0.75])
+
+
+def _two_modes(u: torch.Tensor) -> torch.Tensor:
+    """Equal-mass Gaussians, sd 0.08 and 0.016 (the outside probe's F3 target): log L (m,)
+    of (m x 2) points, the narrow mode's peak 3.2 nats above the broad one's."""
+    broad = -0.5 * (((u - _BROAD) / 0.08) ** 2).sum(-1) - 2.0 * math.log(0.08)
+    narrow = -0.5 * (((u - _NARROW) / 0.016) ** 2).sum(-1) - 2.0 * math.log(0.016)
+    return torch.logaddexp(broad, narrow)
+
+
+class _NoWarping:
+    def plug_in(self, z: torch.Tensor) -> torch.Tensor:
+        return z
+
+
+@dataclass
+class _ExactSurrogate:
+    """What the sampler reads of a :class:`Surrogate` (training points for the starts, the
+    plug-in log L̃), with the exact two-mode log L as its mean: the exact mode shares are
+    known (0.5 each; the box cuts off under 10⁻⁴ of the broad mode)."""
+
+    train_x: torch.Tensor
+    train_y: np.ndarray = field(init=False)
+    warping: _NoWarping = field(default_factory=_NoWarping)
+
+    def __post_init__(self) -> None:
+        self.train_y = _two_modes(self.train_x).numpy()
+
+    def latent_mean(self, u: torch.Tensor) -> torch.Tensor:
+        return _two_modes(u)
+
+
+def _narrow_share(draws: torch.Tensor) -> float:
+    return float(((draws - _NARROW).norm(dim=-1) < 0.1).double().mean())
+
+
+def _evaluated(*points: list[float]) -> _ExactSurrogate:
+    return _ExactSurrogate(torch.tensor(points, dtype=torch.float64))
+
+
+# two evaluations at the narrow peak, one 1 sd off the broad one: chains start ∝ exp(log L)
+# there, so 8 of 512 start in the broad mode, fewer than the 11 (2 %) that the jumps planned
+# half-way through warm-up need, and more than the q + 2 = 4 a stuck mode needs
+_FEW_IN_BROAD = ([0.8, 0.75], [0.805, 0.75], [0.38, 0.3])
+_TWO_MODES_RUN = {"n_chains": 512, "warmup_steps": 200, "num_samples": 500, "seed": 0}
+
+
+def test_a_mode_too_few_chains_reached_gets_its_exact_share_from_the_mode_pass() -> None:
+    """The outside probe's F3: chains started almost all in the narrow mode and stayed
+    there, 98 % of the draws against the exact 50 % (R-hat 3.2). "auto" jumps between the
+    modes the chains ended in and keeps that pass, which mixed."""
+    surrogate = _evaluated(*_FEW_IN_BROAD)
+    walk, walk_diag = sample_surrogate_posterior(surrogate, sampler="random_walk", **_TWO_MODES_RUN)
+    auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **_TWO_MODES_RUN)
+    starts = initial_positions(surrogate.train_x.numpy(), surrogate.train_y, 512, 0)
+    assert int(((starts - _BROAD).norm(dim=-1) < 0.3).sum()) == 8  # the premise
+    # before: the first pass alone, no jumps planned, the shares as the chains started
+    walk_r_hat = float(chain_diagnostics(walk)[0].max())
+    assert walk_diag["modes"] == 1.0 and walk_r_hat > 2.0
+    assert _narrow_share(walk) > 0.98
+    # after: the exact shares, from the mode pass's draws, which mixed
+    assert abs(_narrow_share(auto) - 0.5) < 0.03
+    assert auto.shape == walk.shape and diag["sampler"] == "random_walk"
+    assert diag["modes"] == 2.0 and diag["first pass R-hat"] == pytest.approx(walk_r_hat)
+    r_hat, ess = chain_diagnostics(auto)
+    assert diag["mode pass R-hat"] == pytest.approx(float(r_hat.max()))
+    assert float(r_hat.max()) <= 1.05
+    assert float(ess.min()) >= 400
+    # the pass is the documented kernel: from the last positions, seed + the offset
+    kernel = RandomWalkMetropolis(
+        surrogate_potential(surrogate),
+        walk[:, -1, :],
+        proposal_cov=(0.03**2) * torch.eye(2, dtype=torch.float64),
+        seed=MODE_PASS_SEED_OFFSET,
+        jump_probability=MODE_PASS_JUMP_PROBABILITY,
+        mixture=MixtureProposal.of_chains(walk, stuck_modes(walk)),
+    )
+    assert torch.equal(auto, run_vectorized(kernel, 500, 200))
+
+
+def test_a_mode_pass_that_did_not_mix_leaves_the_first_pass_bit_for_bit() -> None:
+    """Eight draws per chain: too few for any pass to mix. The first pass's draws stay, and
+    the diagnostics say what the mode pass gave."""
+    surrogate = _evaluated(*_FEW_IN_BROAD)
+    kwargs = {**_TWO_MODES_RUN, "num_samples": 8}
+    walk, walk_diag = sample_surrogate_posterior(surrogate, sampler="random_walk", **kwargs)
+    auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **kwargs)
+    assert torch.equal(auto, walk)
+    assert diag == {**walk_diag, "mode pass R-hat": diag["mode pass R-hat"], "mode pass modes": 2.0}
+    assert float(diag["mode pass R-hat"]) > 1.05
+
+
+def _bare_walk(
+    surrogate: Surrogate | _ExactSurrogate,
+    n_chains: int,
+    warmup_steps: int,
+    num_samples: int,
+    seed: int,
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """The random-walk kernel alone, as ``sample_surrogate_posterior`` builds it: its
+    (chains x draws x q) draws and its diagnostics."""
+    starts = initial_positions(surrogate.train_x.numpy(), surrogate.train_y, n_chains, seed)
+    kernel = RandomWalkMetropolis(
+        surrogate_potential(surrogate),
+        starts,
+        proposal_cov=(0.03**2) * torch.eye(starts.shape[1], dtype=torch.float64),
+        seed=seed,
+    )
+    return run_vectorized(kernel, num_samples, warmup_steps), kernel.diagnostics()
+
+
+def test_auto_is_the_bare_random_walk_where_the_jumps_were_planned() -> None:
+    """Both modes at evaluated peaks: 27 of 512 chains start in the broad mode, enough for
+    the jumps planned half-way through warm-up. No second pass, no further random number:
+    the draws are the kernel's alone, bit for bit."""
+    surrogate = _evaluated([0.8, 0.75], [0.3, 0.3])
+    starts = initial_positions(surrogate.train_x.numpy(), surrogate.train_y, 512, 0)
+    assert int(((starts - _BROAD).norm(dim=-1) < 0.3).sum()) == 27  # the premise
+    auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **_TWO_MODES_RUN)
+    walk, walk_diag = _bare_walk(surrogate, **_TWO_MODES_RUN)
+    assert torch.equal(auto, walk)
+    assert diag == {**walk_diag, "sampler": "random_walk"} and diag["modes"] == 2.0
+
+
 def test_auto_keeps_the_random_walk_bit_for_bit_where_it_mixed() -> None:
     surrogate = _surrogate(_gaussian, 1)
     kwargs = {"n_chains": 64, "warmup_steps": 100, "num_samples": 400, "seed": 3}
@@ -49,6 +182,9 @@ def test_auto_keeps_the_random_walk_bit_for_bit_where_it_mixed() -> None:
     assert float(r_hat.max()) <= 1.05 and float(ess.min()) >= 400  # the premise
     assert torch.equal(walk, auto)
     assert auto_diag == walk_diag and auto_diag["sampler"] == "random_walk"
+    # no second pass, no further random number: the kernel run alone, bit for bit
+    bare, bare_diag = _bare_walk(surrogate, **kwargs)
+    assert torch.equal(auto, bare) and auto_diag == {**bare_diag, "sampler": "random_walk"}
 
 
 def test_auto_switches_to_hmc_where_the_random_walk_did_not_mix() -> None:
