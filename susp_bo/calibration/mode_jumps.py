@@ -43,6 +43,13 @@ import torch
 
 SEPARATION = 6.0
 """Pooled within-cluster sds between two cluster means for a split to count as two modes."""
+STUCK_MIN_CHAINS = 2
+"""Smallest cluster of chains' last positions :func:`stuck_modes` counts. Not q + 2 (the
+warm-up jumps' floor): the mode pass fits each mode's mixture component to every draw of
+its chains, so two chains suffice, and a mode that fewer than q + 2 of 512 chains reached
+(0.8 % of the draws in a mode of half the exact mass; session 25, the needle with a trust
+region, seed 5) was left to HMC, which mixed inside the other mode or not at all. A stray
+chain in a tail or a curved arm is not split off: it lies within the 6 pooled sds."""
 
 
 def _covariance(x: torch.Tensor) -> torch.Tensor:
@@ -119,20 +126,23 @@ def find_modes(
     max_modes: int = 5,
     min_share: float = 0.02,
     separation_sd: float = SEPARATION,
+    min_chains: int | None = None,
 ) -> list[torch.Tensor]:
     """Clusters of chain positions that are separated modes (module docstring).
 
     Args:
         x: (n_chains x q) positions.
         max_modes: at most this many clusters.
-        min_share: smallest share of the chains in a cluster (and at least q + 2 chains).
+        min_share: smallest share of the chains in a cluster (and at least ``min_chains``).
         separation_sd: smallest separation of a split (pooled within-cluster sds).
+        min_chains: smallest number of chains in a cluster; None: q + 2 (a cluster whose own
+            covariance the warm-up jumps' mixture can estimate).
 
     Returns:
         Index tensors, one per cluster (a single cluster of every chain when unimodal).
     """
     n, q = x.shape
-    smallest = max(math.ceil(min_share * n), q + 2)
+    smallest = max(math.ceil(min_share * n), q + 2 if min_chains is None else min_chains)
     clusters = [torch.arange(n)]
     tried: set[tuple[int, ...]] = set()
     while len(clusters) < max_modes:
@@ -226,14 +236,15 @@ def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor
     chains start ∝ exp(log L) at evaluated points, so a taller, narrower mode takes nearly
     all) is not jumped to, and its chains stay apart: split R-hat 3 where half the exact
     mass sat in the mode 1 % of the chains held (outside probe, session 24). Here the last
-    positions are split by :func:`find_modes` with any cluster of at least q + 2 chains
-    counting; then two clusters are joined when some chain lay, at one of ``checkpoints``
-    evenly spaced draws, nearest (whitened by the last positions' covariance) to the other
-    cluster's last positions than to its own: a chain went from one to the other, so the
-    random walk connects them. The join is what tells a curved mode from separated ones:
-    on the exact curved 5-D target (512 chains x 2 000 draws, R-hat 1.35–1.44) the last
-    positions split into three clusters on two of three seeds, but 94–100 % of the chains
-    in the small clusters had come from the large one; two separated modes share no chain.
+    positions are split by :func:`find_modes` with any cluster of at least
+    :data:`STUCK_MIN_CHAINS` chains counting; then two clusters are joined when some chain
+    lay, at one of ``checkpoints`` evenly spaced draws, nearest (whitened by the last
+    positions' covariance) to the other cluster's last positions than to its own: a chain
+    went from one to the other, so the random walk connects them. The join is what tells a
+    curved mode from separated ones: on the exact curved 5-D target (512 chains x 2 000
+    draws, R-hat 1.35–1.44) the last positions split into three clusters on two of three
+    seeds, but 94–100 % of the chains in the small clusters had come from the large one; two
+    separated modes share no chain.
 
     Args:
         draws: (chains x draws x q) draws.
@@ -244,7 +255,7 @@ def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor
         every chain when the chains did not stay apart).
     """
     end = draws[:, -1, :]
-    clusters = find_modes(end, min_share=0.0)
+    clusters = find_modes(end, min_share=0.0, min_chains=STUCK_MIN_CHAINS)
     if len(clusters) < 2:
         return clusters
     chol, info = torch.linalg.cholesky_ex(_covariance(end))
@@ -279,8 +290,8 @@ def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor
 
 def modes_chains_stayed_in(draws: torch.Tensor) -> int:
     """The number of separated modes the chains stayed in, for chains that did not mix
-    (:func:`stuck_modes`; 1 when none): any cluster of at least q + 2 chains counts, so that
-    the verdict names the modes (``multimodal``), not only the sampler.
+    (:func:`stuck_modes`; 1 when none): any cluster of :data:`STUCK_MIN_CHAINS` chains
+    counts, so that the verdict names the modes (``multimodal``), not only the sampler.
 
     Args:
         draws: (chains x draws x q) draws.

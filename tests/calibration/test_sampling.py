@@ -137,7 +137,8 @@ def test_a_mode_pass_that_did_not_mix_leaves_the_first_pass_bit_for_bit() -> Non
     walk, walk_diag = sample_surrogate_posterior(surrogate, sampler="random_walk", **kwargs)
     auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **kwargs)
     assert torch.equal(auto, walk)
-    assert diag == {**walk_diag, "mode pass R-hat": diag["mode pass R-hat"], "mode pass modes": 2.0}
+    extra = {"mode pass R-hat": diag["mode pass R-hat"], "mode pass modes": diag["mode pass modes"]}
+    assert diag == {**walk_diag, **extra} and float(diag["mode pass modes"]) >= 2.0
     assert float(diag["mode pass R-hat"]) > 1.05
 
 
