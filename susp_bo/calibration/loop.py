@@ -273,6 +273,7 @@ def calibrate(
     local: LocalSearchResult | None = None
     laplace: Laplace | None = None
     basins_done = False
+    superseded = False
     climbs: list[ClimbReport] = []
     wants_local = settings.local_search and isinstance(evaluate, SpectraEvaluator)
     if settings.local_search and not wants_local:
@@ -332,6 +333,7 @@ def calibrate(
                 )
                 if found:  # back to EGO over C_w, with the audit's points in the data
                     phase, box, boxed, laplace = "ego", b.copy(), settings.trust_region, None
+                    superseded = local is not None  # it stays done: no box around one hill
                     ego_cap = x.shape[0] + int(
                         settings.max_ego_fraction * (main_budget - x.shape[0])
                     )
@@ -428,4 +430,5 @@ def calibrate(
         search_box=box if boxed else None,
         local_search=local,
         basins=tuple(climbs),
+        local_search_superseded=superseded,
     )

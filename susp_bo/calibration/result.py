@@ -84,6 +84,9 @@ class CalibrationResult:
             ``settings.trust_region`` or the local phase set a box (:mod:`.trust_region`).
         local_search: what the local phase found (mode and Laplace covariance in the unit
             cube of C_w), None when it did not run (:mod:`.local_search`).
+        local_search_superseded: True when an early stop's audit
+            (:mod:`.exploration_audit`) found posterior mass after the local phase: the
+            search then went on over C_w, and ``local_search`` describes the first hill only.
         basins: the climbs of the basin phase (:mod:`.basin_search`), empty when the data
             had no secondary basin when EGO ended (or the phase is off).
     """
@@ -104,6 +107,7 @@ class CalibrationResult:
     search_box: np.ndarray | None = None
     local_search: LocalSearchResult | None = None
     basins: tuple[ClimbReport, ...] = ()
+    local_search_superseded: bool = False
 
     @property
     def samples(self) -> np.ndarray:
@@ -130,7 +134,8 @@ class CalibrationResult:
         ]
 
     def local_search_dict(self) -> dict[str, Any] | None:
-        """The local phase, JSON-ready: mode, Laplace sd (physical units), stop; or None."""
+        """The local phase, JSON-ready: mode, Laplace sd (physical units), stop, and
+        ``superseded_by_audit`` when an audit found mass after it; or None."""
         local = self.local_search
         if local is None:
             return None
@@ -142,7 +147,9 @@ class CalibrationResult:
             "n_evaluations": local.n_evaluations,
             "stop_reason": local.stop_reason,
             "iterations": local.iterations,
-        }
+        } | (  # the key only when it happened: results of runs without it are unchanged
+            {"superseded_by_audit": True} if self.local_search_superseded else {}
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The calibration's part of ``result.json``: the same keys, layout and meaning.

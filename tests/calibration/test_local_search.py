@@ -224,6 +224,9 @@ def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> Non
     assert "explore" in [h.phase for h in audited.history]
     lo, hi = audited.summary.interval95[0]
     assert lo <= 3.0 <= hi  # the audit found the hill the design never saw
+    # the local phase's record describes the first hill: result.json says it was superseded
+    assert audited.local_search is not None and audited.local_search_superseded
+    assert audited.local_search_dict()["superseded_by_audit"] is True
     result = calibrate(
         problem,
         bounds,
@@ -231,7 +234,8 @@ def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> Non
         replace(settings, audit_share=0.0),
         **arguments,  # type: ignore[arg-type]
     )
-    assert result.local_search is not None
+    assert result.local_search is not None and not result.local_search_superseded
+    assert "superseded_by_audit" not in result.local_search_dict()
     lo, hi = result.summary.interval95[0]
     assert not lo <= 3.0 <= hi  # a confident wrong answer...
     rel = result.reliability
