@@ -92,7 +92,7 @@ from susp_bo.calibration.sampling import (
 )
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate_check import SurrogateCheck
-from susp_bo.calibration.trust_region import box_edge, points_within_reach, to_global_unit
+from susp_bo.calibration.trust_region import box_edge, held_points, hold_points, to_global_unit
 from susp_bo.numerics import one_blas_thread
 from susp_bo.progress import progress_bar
 
@@ -149,13 +149,6 @@ def _check_design_values(y: np.ndarray) -> None:
             f"evaluations of the design{failed}: the data do not inform the parameters or the "
             "evaluator ignores them"
         )
-
-
-def _hold_best(box: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``box`` widened to hold the best evaluated point and every point within reach of it
-    (:func:`.trust_region.points_within_reach`; physical units)."""
-    held = points_within_reach(x, y)
-    return np.stack([np.minimum(box[0], held.min(axis=0)), np.maximum(box[1], held.max(axis=0))])
 
 
 @one_blas_thread()  # main-process BLAS (log L, surrogate, chains) core-count independent
@@ -313,7 +306,7 @@ def calibrate(
                 evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
             )
             box = from_unit(local.box(settings.trust_region_half_width_sd), b)
-            box = _hold_best(box, x, y)
+            box = hold_points(box, held_points(x, y, settings.trust_region))
             boxed = True
             laplace = Laplace.of(local, b) if settings.laplace_mean else None
             logger.info(

@@ -38,7 +38,7 @@ from susp_bo.calibration.surrogate_check import (
     observation_noise_sd,
 )
 from susp_bo.calibration.surrogate_fit import Bowl, fit_surrogate
-from susp_bo.calibration.trust_region import next_box, points_within_reach, training_mask
+from susp_bo.calibration.trust_region import held_points, hold_points, next_box, training_mask
 
 logger = logging.getLogger(__name__)
 
@@ -228,13 +228,13 @@ def propose_step(
         surrogate, settings, derived_seed(seed, iteration, 3)
     )
     if boxed:
-        moved = next_box(  # a box holding every point within reach of the best (2nd modes)
-            candidates[:n_post].numpy(),
-            box,
-            bounds,
-            points_within_reach(x, y),
-            settings.trust_region_half_width_sd,
+        held = held_points(x, y, settings.trust_region)
+        moved = next_box(
+            candidates[:n_post].numpy(), box, bounds, held, settings.trust_region_half_width_sd
         )
+        if settings.trust_region:  # a held point the box has left: widen the box to it
+            widened = hold_points(box if moved is None else moved, held)
+            moved = None if np.array_equal(widened, box) else widened
         if moved is not None:
             logger.info("search box: %s", np.array2string(moved, precision=4))
             box = moved

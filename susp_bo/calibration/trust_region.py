@@ -13,13 +13,16 @@ posterior:
   box-scaled Chebyshev distance); its lengthscale priors, the acquisition, the
   refinement candidates, the held-out check and the final MCMC all live in B;
 - :func:`next_box` *shrinks* a coordinate of B to the surrogate posterior's median ±
-  ``half_width_sd`` posterior sd (never excluding the best evaluated point) when that is
-  at most ``max_ratio`` of B's current width, and *grows* B (one box width outwards,
-  within C_w) on any side where posterior draws press against an inner face of B —
-  so a box that missed the mass moves to it instead of truncating it;
+  ``half_width_sd`` posterior sd (never excluding the best evaluated point — with the
+  opt-in trust region, nor any evaluation within :func:`posterior_reach` of the best,
+  :func:`held_points`, to which the loop also widens B) when that is at most
+  ``max_ratio`` of B's current width, and *grows* B (one box width outwards, within C_w)
+  on any side where posterior draws press against an inner face of B — so a box that
+  missed the mass moves to it instead of truncating it;
 - :func:`box_edge` turns a posterior that still presses against an inner face at the
-  end into the reliability reason ``search_box_edge`` (the box cut the posterior: the
-  result is not trusted).
+  end, or an evaluation within reach of the best outside the final box, into the
+  reliability reason ``search_box_edge`` (the box cut the posterior: the result is not
+  trusted).
 
 The prior is uniform on C_w; restricted to B it is uniform on B, so the posterior in
 B is the posterior on C_w whenever B holds its mass — which :func:`box_edge` checks.
@@ -104,6 +107,36 @@ def face_pressure(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
     return np.stack([np.mean(u < strip, axis=0), np.mean(u > 1.0 - strip, axis=0)])
 
 
+def held_points(x: np.ndarray, y: np.ndarray, within_reach: bool) -> np.ndarray:
+    """(k x q) the evaluations a search box must hold (physical units).
+
+    With ``within_reach`` (the opt-in trust region, ``CalibrationSettings.trust_region``)
+    every evaluation within :func:`posterior_reach` of the best log L — a second mode the
+    surrogate's draws may not show; without it (the box of the local phase, which follows
+    its Laplace approximation) the best evaluation alone, as the README demo's reference
+    results were made (an evaluation within reach that such a box leaves out makes the
+    verdict ``search_box_edge``: :func:`box_edge`). (0 x q) when no run succeeded.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if within_reach:
+        return points_within_reach(x, y)
+    finite = np.isfinite(y)
+    if not finite.any():
+        return x[:0]
+    return x[finite][int(np.argmax(y[finite]))][None, :]
+
+
+def hold_points(box: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """``box`` (2 x q) widened, where needed, to hold every row of ``held`` (k x q; physical
+    units); unchanged when ``held`` is empty."""
+    box = np.asarray(box, dtype=np.float64)
+    held = np.asarray(held, dtype=np.float64)
+    if held.size == 0:
+        return box
+    return np.stack([np.minimum(box[0], held.min(axis=0)), np.maximum(box[1], held.max(axis=0))])
+
+
 def next_box(
     draws_local: np.ndarray,
     box: np.ndarray,
@@ -119,10 +152,10 @@ def next_box(
         draws_local: (n x q) surrogate posterior draws in ``box``'s unit cube.
         box: (2 x q) current search box, physical units.
         bounds: (2 x q) admissible bounds C_w.
-        keep: (q,) or (k x q) evaluated points, physical units, always kept inside the box:
-            the best one, and every one whose log L is within reach of the best
-            (:func:`points_within_reach`) — evidence of posterior mass the surrogate's
-            draws may not show (a second mode the box would otherwise cut away).
+        keep: (q,) or (k x q) evaluated points, physical units (:func:`held_points`), that
+            a *shrunk* coordinate keeps inside (a coordinate that does not shrink keeps its
+            extent; the loop widens the opt-in trust region to them with
+            :func:`hold_points`). Empty: the posterior's extent alone.
         half_width_sd: half-width of a shrunk coordinate in posterior sd.
         max_ratio: a coordinate shrinks only to at most this fraction of its width.
         pressure: share of the draws in the 5 % strip at an inner face above which the box
@@ -137,8 +170,9 @@ def next_box(
     centre = np.median(d, axis=0)
     sd = d.std(axis=0)
     held = np.atleast_2d(np.asarray(keep, dtype=np.float64))
-    lo = np.minimum(centre - half_width_sd * sd, held.min(axis=0))
-    hi = np.maximum(centre + half_width_sd * sd, held.max(axis=0))
+    lo, hi = centre - half_width_sd * sd, centre + half_width_sd * sd
+    if held.size:
+        lo, hi = np.minimum(lo, held.min(axis=0)), np.maximum(hi, held.max(axis=0))
     pad = 0.05 * (hi - lo)
     lo, hi = lo - pad, hi + pad
     width = box[1] - box[0]

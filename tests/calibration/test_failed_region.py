@@ -56,3 +56,20 @@ def test_failures_that_strike_anywhere_are_told_apart_from_a_failed_region() -> 
     reason, _ = failed_region(draws, x, anywhere, None)
     assert reason is not None and reason["scattered"] is True
     assert "scattered among successful runs" in reason["message"]
+
+
+def test_a_region_bounded_in_one_parameter_is_not_scattered_in_seven_dimensions() -> None:
+    """Review, session 25: at q = 7 the evaluations are too sparse for neighbours to show a
+    region (x0 > 0.75 failing was called scattered on 7 of 20 seeds); the one parameter
+    that tells failed from successful runs does."""
+    from scipy.stats import qmc
+
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        design = qmc.LatinHypercube(d=7, seed=seed).random(35)
+        near = np.clip(rng.normal(0.5, 0.03, size=(60, 7)), 0, 1)
+        x = np.vstack([design, near])
+        assert not failures_scattered(x, x[:, 0] < 0.75)
+        anywhere = rng.uniform(size=len(x)) > 0.2
+        if int((~anywhere).sum()) >= 5:
+            assert failures_scattered(x, anywhere)
