@@ -204,6 +204,8 @@ class RandomWalkMetropolis(VectorisedKernel):
             self._mixture = MixtureProposal.of(x[finite], clusters)
 
     def _adapt(self, x: torch.Tensor, log_alpha: torch.Tensor) -> None:
+        if log_alpha.numel() == 0:  # every chain jumped: no random-walk step to learn from
+            return  # (the mean of none was NaN and stuck in the scale; review, session 25)
         q = x.shape[1]
         mean_accept = float(torch.exp(log_alpha.clamp(max=0.0)).nan_to_num(0.0).mean())
         gain = max(0.02, (self._t + 1) ** -0.5)

@@ -210,15 +210,26 @@ class MixtureProposal:
         rows = [(c[:, None] * n_draws + torch.arange(n_draws)).reshape(-1) for c in modes]
         return cls.of(draws.reshape(-1, draws.shape[2]), rows, inflation)
 
-    def log_density(self, x: torch.Tensor) -> torch.Tensor:
-        """(m,) log q(x) of (m x q) points (equal component weights)."""
+    def _component_log_densities(self, x: torch.Tensor) -> torch.Tensor:
+        """(K x m) log N(x; mean_k, cov_k) of (m x q) points."""
         k, q = self.means.shape
         terms = []
         for i in range(k):
             z = torch.linalg.solve_triangular(self.chols[i], (x - self.means[i]).T, upper=False).T
             log_det = torch.log(torch.diagonal(self.chols[i])).sum()
             terms.append(-0.5 * (z * z).sum(1) - log_det - 0.5 * q * math.log(2 * math.pi))
-        return torch.logsumexp(torch.stack(terms), dim=0) - math.log(k)
+        return torch.stack(terms)
+
+    def log_density(self, x: torch.Tensor) -> torch.Tensor:
+        """(m,) log q(x) of (m x q) points (equal component weights)."""
+        k = self.means.shape[0]
+        return torch.logsumexp(self._component_log_densities(x), dim=0) - math.log(k)
+
+    def shares(self, x: torch.Tensor) -> torch.Tensor:
+        """(K,) share of the (m x q) points ``x`` whose most probable component is each one:
+        how the draws of a mixed pass are shared between the modes."""
+        nearest = self._component_log_densities(x).argmax(0)
+        return torch.bincount(nearest, minlength=self.means.shape[0]).double() / x.shape[0]
 
     def draw(self, n: int, generator: torch.Generator) -> torch.Tensor:
         """(n x q) draws: a component uniformly at random, then its Gaussian."""

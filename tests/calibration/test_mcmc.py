@@ -155,3 +155,35 @@ def test_a_constant_component_leaves_the_others_diagnostics_alone() -> None:
     assert torch.equal(r_hat[1:], alone[0]) and torch.equal(ess[1:], alone[1])
     r_hat, ess = chain_diagnostics(pinned)
     assert torch.isnan(r_hat).all() and torch.isnan(ess).all()
+
+
+def test_a_warm_up_step_where_every_chain_jumped_leaves_the_scale_finite() -> None:
+    """Review, session 25: with a given mixture and few chains, a warm-up step where every
+    chain jumped adapted the random-walk scale on no proposal at all: NaN (9 of 20 seeds
+    with 4 chains), and the random-walk moves died."""
+    from susp_bo.calibration.mode_jumps import MixtureProposal
+
+    def potential(w: torch.Tensor) -> torch.Tensor:
+        a = -0.5 * (((w - 0.3) / 0.08) ** 2).sum(-1)
+        b = -0.5 * (((w - 0.8) / 0.016) ** 2).sum(-1) + 2 * math.log(5.0)
+        return -torch.logaddexp(a, b)
+
+    g = torch.Generator().manual_seed(0)
+    draws = torch.cat(
+        [
+            0.3 + 0.08 * torch.randn(2, 100, 2, generator=g, dtype=torch.float64),
+            0.8 + 0.016 * torch.randn(2, 100, 2, generator=g, dtype=torch.float64),
+        ]
+    )
+    mixture = MixtureProposal.of_chains(draws, [torch.arange(2), torch.arange(2, 4)])
+    for seed in range(20):
+        kernel = RandomWalkMetropolis(
+            potential,
+            draws[:, -1, :],
+            proposal_cov=0.03**2 * torch.eye(2, dtype=torch.float64),
+            seed=seed,
+            jump_probability=0.3,
+            mixture=mixture,
+        )
+        run_vectorized(kernel, 50, 300)
+        assert math.isfinite(float(kernel.diagnostics()["scale"])), seed

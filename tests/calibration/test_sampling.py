@@ -18,6 +18,7 @@ from susp_bo.calibration.sampling import (
     HMC_CHAINS,
     MODE_PASS_JUMP_PROBABILITY,
     MODE_PASS_SEED_OFFSET,
+    _mode_pass,
     initial_positions,
     mean_sd_at_draws,
     sample_surrogate_posterior,
@@ -244,3 +245,48 @@ def test_mean_sd_at_draws_is_small_where_evaluated_and_large_where_not() -> None
     assert mean_sd_at_draws(surrogate, inside) == near
     assert mean_sd_at_draws(surrogate, inside.reshape(-1, 2)) == pytest.approx(near)
     assert np.isnan(mean_sd_at_draws(surrogate, inside[:, :0]))
+
+
+_PEAK, _SPECK = torch.tensor([0.2, 0.2]), torch.tensor([0.8, 0.75])
+
+
+def _peak_and_speck(u: torch.Tensor) -> torch.Tensor:
+    """A mode (sd 0.03) and, 20 sd away, a speck (sd 0.01, its peak 3.1 nats lower) that
+    holds 0.5 % of the mass: log L (m,) of (m x 2) points."""
+    peak = -0.5 * (((u - _PEAK) / 0.03) ** 2).sum(-1)
+    speck = -3.1 - 0.5 * (((u - _SPECK) / 0.01) ** 2).sum(-1)
+    return torch.logaddexp(peak, speck)
+
+
+def test_a_mode_with_no_share_of_the_mixed_draws_is_not_counted() -> None:
+    """Review, session 25: two chains stuck at a speck of the surrogate (a tiny bump) make
+    the mode pass run; it mixes, and the speck holds 0.5 % of its draws — no mode of the
+    posterior, so `modes` (and the `multimodal` verdict) must not count it."""
+    generator = torch.Generator().manual_seed(0)
+    peak = _PEAK + 0.03 * torch.randn(510, 400, 2, generator=generator, dtype=torch.float64)
+    speck = _SPECK + 0.01 * torch.randn(2, 400, 2, generator=generator, dtype=torch.float64)
+    first = torch.cat([peak, speck])
+    modes = stuck_modes(first)
+    assert [len(m) for m in modes] == [510, 2]  # the premise: two chains stuck in the speck
+
+    def potential(u: torch.Tensor) -> torch.Tensor:
+        inside = torch.all((u >= 0) & (u <= 1), dim=-1)
+        return torch.where(inside, -_peak_and_speck(u), torch.full_like(u[:, 0], math.inf))
+
+    draws, diag = _mode_pass(
+        potential,
+        first,
+        modes,
+        {"modes": 1.0, "sampler": "random_walk"},
+        3.0,
+        seed=0,
+        num_samples=400,
+        warmup_steps=200,
+        backend="vectorized",
+        thin=1,
+        progress=False,
+    )
+    assert "first pass R-hat" in diag  # the pass mixed and its draws were kept
+    share = float(((draws - _SPECK).norm(dim=-1) < 0.05).double().mean())
+    assert 0.001 < share < 0.01
+    assert diag["modes"] == 1.0
