@@ -30,6 +30,9 @@ COMMAND_LINE_ADVICE = {
     "surrogate_misfit": "rerun with --resume --budget {more}",
     "surrogate_unchecked": "rerun with check points ([budget] check_points)",
     "search_box_edge": "rerun with --resume --budget {more}",
+    "box_left_mass": "look at the evaluations outside the search box (study.log, "
+    "evaluations.sqlite): the box follows one hill, so more budget would refine the same "
+    "box; a second hill the data allow means they do not identify the parameters uniquely",
     "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
     "failed_scattered": "make the failing simulations run (the log and evaluations.sqlite "
     "name them; narrowing the admissible interval will not avoid failures that strike "
@@ -57,6 +60,8 @@ PYTHON_ADVICE = {
     "noisy": "let the surrogate learn the noise: CalibrationSettings(surrogate="
     'SurrogateSettings(noise="learned"))',
     "search_box_edge": _MORE,
+    "box_left_mass": "rerun over all of C_w (CalibrationSettings(trust_region=False); with "
+    "local_search=True its box follows one hill too): more budget would refine the same box",
     "narrow": "the posterior is under 1 % of C_w wide, too narrow for a surrogate of all of "
     "C_w: CalibrationSettings(trust_region=True) refines in a box that follows it; or " + _MORE,
     "poor_mixing": "rerun with more MCMC draws (CalibrationSettings(mcmc_samples=..., "
@@ -99,6 +104,8 @@ def sentence(
     code = "noisy" if noisy else "failed_scattered" if scattered else first["code"]
     if code == "not_converged" and first.get("posterior_width") is not None:
         code = "narrow" if "narrow" in table else code
+    if code == "search_box_edge" and first.get("evaluations_outside_box"):
+        code = "box_left_mass"  # more budget would refine the same box
     advice = table.get(code, "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),

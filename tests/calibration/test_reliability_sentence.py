@@ -103,3 +103,16 @@ def test_scattered_failures_lead_the_advice_whichever_reason_comes_first() -> No
     )
     region = ({"code": "failed_region", "message": "f"},)
     assert "narrow the admissible interval" in sentence(region, {"budget": 200}, "command_line")
+
+
+def test_mass_left_outside_the_box_is_not_told_to_add_budget() -> None:
+    """Review, session 25: more budget refines the same box; the advice says where to look
+    (command line) or to search all of C_w (Python)."""
+    face = ({"code": "search_box_edge", "message": "m"},)
+    left = ({"code": "search_box_edge", "message": "m", "evaluations_outside_box": 2},)
+    assert sentence(face, {"budget": 200}, "command_line").endswith(
+        "rerun with --resume --budget 400."
+    )
+    line = sentence(left, {"budget": 200}, "command_line")
+    assert "look at the evaluations outside the search box" in line and "--budget" not in line
+    assert "CalibrationSettings(trust_region=False)" in sentence(left, {"budget": 200}, "python")

@@ -17,6 +17,8 @@ from susp_bo.calibration.surrogate import SurrogateSettings
 from susp_bo.calibration.trust_region import (
     box_edge,
     face_pressure,
+    held_points,
+    hold_points,
     next_box,
     points_within_reach,
     posterior_reach,
@@ -111,10 +113,19 @@ def test_next_box_keeps_every_point_within_reach_a_second_mode_included() -> Non
     box = np.array([[0.0, 0.0], [1.0, 1.0]])
     centre, sd = np.array([0.8, 0.75]), np.array([0.016, 0.016])
     keep = np.array([[0.8, 0.75], [0.3, 0.3]])
-    new = next_box(_draws(centre, sd, box), box, box, keep)
-    assert new is None or np.all((new[0] <= 0.3) & (new[1] >= 0.8))
+    # the held points span over half the box: no coordinate shrinks, the box stays whole
+    assert next_box(_draws(centre, sd, box), box, box, keep) is None
     only_best = next_box(_draws(centre, sd, box), box, box, keep[0])
     assert only_best is not None and np.all(only_best[0] > 0.6)  # the old box: mode 2 cut
+    # a held point the box has already left: the loop widens the box to it (review)
+    assert hold_points(only_best, keep).tolist() == [
+        [0.3, 0.3],
+        only_best[1].tolist(),
+    ]
+    assert np.array_equal(hold_points(only_best, keep[:0]), only_best)  # nothing held
+    best_only = held_points(np.array([[0.1, 0.1], [0.5, 0.5]]), np.array([-1.0, -2.0]), False)
+    assert best_only.tolist() == [[0.1, 0.1]]
+    assert held_points(keep, np.array([np.nan, np.nan]), True).shape == (0, 2)
 
 
 def test_box_edge_flags_an_evaluation_within_reach_outside_the_box() -> None:
