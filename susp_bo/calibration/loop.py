@@ -53,6 +53,7 @@ import numpy as np
 import torch
 
 from susp_bo.calibration.basin_search import ClimbReport
+from susp_bo.calibration.box_mass import share_outside_box
 from susp_bo.calibration.budget import BudgetTooSmallError, budget_message, budget_requirement
 from susp_bo.calibration.design import (
     check_bounds,
@@ -72,6 +73,7 @@ from susp_bo.calibration.loop_step import (
     derived_seed,
     evaluate_checked,
     fit_in_box,
+    impute_failures,
     propose_check,
     propose_step,
     repeated_check,
@@ -376,6 +378,19 @@ def calibrate(
             predicted_max = float(log_l(u_map)[0])
             predicted_max_sd = float(surrogate.log_likelihood_uncertainty(u_map)[1][0])
         draws_sd = mean_sd_at_draws(surrogate, draws_u)
+        outside_share = (  # a broad, low mode the box left out (after the MCMC: no draw moves)
+            share_outside_box(
+                to_unit(x, b),
+                impute_failures(y),
+                to_unit(box, b),
+                to_global_unit(draws_u.numpy(), box, b).reshape(-1, q),
+                settings,
+            )
+            if boxed
+            else 0.0
+        )
+    if boxed:
+        logger.info("posterior mass outside the search box (a lower estimate): %.3g", outside_share)
     modes = int(diag.get("modes", 1) or 1)
     if modes < 2 and not np.all(np.asarray(summary.r_hat) <= POOR_MIXING_R_HAT):
         modes = modes_chains_stayed_in(draws_u)  # chains left in modes the jumps never saw
@@ -396,7 +411,9 @@ def calibrate(
         ess=summary.ess,
         check=check,
         expected_at_truth=expected_at_truth,
-        box_edge=box_edge(draws_u.numpy().reshape(-1, q), box, b, names, x=x, y=y),
+        box_edge=box_edge(
+            draws_u.numpy().reshape(-1, q), box, b, names, x=x, y=y, outside_share=outside_share
+        ),
         modes=modes,
         sampler=str(diag.get("sampler", "random_walk")),
         draws_sd=draws_sd,

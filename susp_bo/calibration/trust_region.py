@@ -39,6 +39,9 @@ from susp_bo.calibration.design import from_unit, to_unit
 
 Reason = dict
 
+OUTSIDE_SHARE = 0.02
+"""Posterior mass outside the final box (:func:`.box_mass.share_outside_box`) from which
+the box counts as having cut the posterior."""
 REACH_LEVEL = 0.999
 """A point whose log L is within ½ χ²_q(REACH_LEVEL) of the best holds posterior mass."""
 
@@ -199,6 +202,7 @@ def box_edge(
     pressure: float = 0.01,
     x: np.ndarray | None = None,
     y: np.ndarray | None = None,
+    outside_share: float = 0.0,
 ) -> Reason | None:
     """``search_box_edge`` when the final box cut the posterior.
 
@@ -215,6 +219,9 @@ def box_edge(
         pressure: as in :func:`next_box`.
         x: (m x q) evaluated parameters, physical units (None: not looked at).
         y: (m,) their log L (nats), NaN for a failed run.
+        outside_share: the posterior mass outside the box that a surrogate of all of C_w
+            is sure of (:func:`.box_mass.share_outside_box`); at least
+            :data:`OUTSIDE_SHARE` of it is a third kind of evidence (a broad, low mode).
     """
     hit = (face_pressure(draws_local) > pressure) & _inner_faces(box, bounds)
     findings: list[str] = []
@@ -245,6 +252,13 @@ def box_edge(
                 + "): the box left out posterior mass"
             )
             reason["evaluations_outside_box"] = int(outside.sum())
+    if outside_share >= OUTSIDE_SHARE:
+        findings.append(
+            f"a surrogate of all of C_w puts at least {100 * outside_share:.0f} % of the "
+            "posterior mass outside the search box (a broad mode whose peak lies below the "
+            "best log L)"
+        )
+        reason["mass_outside_box"] = float(outside_share)
     if not findings:
         return None
     reason["message"] = "; ".join(findings)

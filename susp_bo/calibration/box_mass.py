@@ -1,0 +1,86 @@
+"""How much posterior mass a search box left out, by a surrogate of all of C_w.
+
+A search box (the opt-in trust region, or the local phase's box) follows one hill: the
+final surrogate, check and MCMC live in it. :func:`.trust_region.box_edge` sees a box that
+cut its posterior when draws press against a face, or when an evaluation outside it has a
+log L within reach of the best. Neither sees a *broad, low* mode: its peak can lie far
+below the best (beyond the reach) and still hold much of the mass, because it is wide
+(outside probe, session 25: a spike of sd 0.015 and a slab of sd 0.3 whose peak is 7 nats
+lower and which holds 22 % of the mass — `trusted` with the slab cut away).
+
+:func:`share_outside_box` fits one more surrogate, on every evaluation over all of C_w,
+and compares
+
+- the mass outside the box it is *sure of*: ∫ exp(mean − 2 sd) of log L̃ over C_w minus
+  the box, by scrambled Sobol' points (the lower confidence bound: where the global fit
+  cannot resolve — near a box 10⁻⁴ of C_w wide, or far from every evaluation — its sd is
+  large and nothing is counted), with
+- the mass inside: the Laplace value exp(best log L) (2π)^{q/2} |Σ|^{1/2}, Σ the
+  reported draws' covariance,
+
+both in the unit cube of C_w. The returned share M_out / (M_in + M_out) is a lower
+estimate of the mass the box left out.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from scipy.stats import qmc
+
+from susp_bo.calibration.settings import CalibrationSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
+
+BOX_MASS_POINTS = 4096
+"""Scrambled Sobol' points over C_w at which the global surrogate is read."""
+BOX_MASS_SD = 2.0
+"""GP standard deviations below the mean: only mass the global surrogate is sure of."""
+BOX_MASS_SEED = 11
+"""Seed of the Sobol' scrambling and of the global fit's restarts (fixed: deterministic)."""
+
+
+def share_outside_box(
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    box_unit: np.ndarray,
+    draws_unit: np.ndarray,
+    settings: CalibrationSettings,
+) -> float:
+    """Lower estimate of the posterior mass outside the search box (module docstring).
+
+    Args:
+        x_unit: (n x q) every evaluation, unit cube of C_w.
+        y: (n,) their log L (nats), failures imputed (finite).
+        box_unit: (2 x q) the final search box, unit cube of C_w.
+        draws_unit: (m x q) the reported posterior draws, unit cube of C_w.
+        settings: the calibration's settings (the surrogate's).
+
+    Returns:
+        The share in [0, 1]; 0 when the box is C_w itself.
+    """
+    q = x_unit.shape[1]
+    box_unit = np.asarray(box_unit, dtype=np.float64)
+    if np.all(box_unit[0] <= 0.0) and np.all(box_unit[1] >= 1.0):
+        return 0.0
+    points = qmc.Sobol(d=q, scramble=True, rng=np.random.default_rng(BOX_MASS_SEED)).random(
+        BOX_MASS_POINTS
+    )
+    outside = np.any((points < box_unit[0]) | (points > box_unit[1]), axis=1)
+    if not outside.any():
+        return 0.0
+    best = float(np.max(y))
+    surrogate = fit_surrogate(x_unit, y, settings.surrogate, seed=BOX_MASS_SEED)
+    with torch.no_grad():
+        mean, sd = surrogate.log_likelihood_uncertainty(
+            torch.as_tensor(points[outside], dtype=torch.float64)
+        )
+    sure = (mean - BOX_MASS_SD * sd).numpy() - best
+    log_out = float(np.logaddexp.reduce(sure)) - math.log(BOX_MASS_POINTS)
+    cov = np.cov(np.asarray(draws_unit, dtype=np.float64), rowvar=False).reshape(q, q)
+    sign, log_det = np.linalg.slogdet(cov + 1e-300 * np.eye(q))
+    if sign <= 0:
+        return 0.0
+    log_in = 0.5 * q * math.log(2.0 * math.pi) + 0.5 * log_det
+    return float(1.0 / (1.0 + math.exp(min(log_in - log_out, 700.0))))
