@@ -334,6 +334,10 @@ def calibrate(
                     )
                     basins_done = False
                     continue
+                if audit_size(
+                    main_budget - x.shape[0], q, settings.audit_share, settings.batch_size
+                ):  # nothing found: search on with the audit's points, and if the search
+                    continue  # stops again, audit again with a share of what is left
             stop_reason = step.stop_reason
             break
         w_new = from_unit(step.proposal.numpy(), box)
