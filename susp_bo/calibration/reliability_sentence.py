@@ -105,7 +105,9 @@ def sentence(
     if code == "not_converged" and first.get("posterior_width") is not None:
         code = "narrow" if "narrow" in table else code
     if code == "search_box_edge" and (
-        first.get("evaluations_outside_box") or first.get("mass_outside_box")
+        first.get("evaluations_outside_box")
+        or first.get("mass_outside_box")
+        or first.get("tail_at_face")
     ):
         code = "box_left_mass"  # more budget would refine the same box
     advice = table.get(code, "rerun with a larger budget").format(

@@ -39,6 +39,12 @@ from susp_bo.calibration.design import from_unit, to_unit
 
 Reason = dict
 
+TAIL_RATIO = 5e-4
+"""Density at an inner box face over the density at the median (:func:`tail_at_faces`)
+above which the box cut heavy tails (outside probe, session 25: a Cauchy of scale 1e-3
+with ``trust_region=True``, its box at ±16–24 scales, `trusted` with 95 % intervals half
+the exact width; a Gaussian reaches this ratio only 3.9 sd from its mode, half way to the
+box's 8 sd)."""
 OUTSIDE_SHARE = 0.02
 """Posterior mass outside the final box (:func:`.box_mass.share_outside_box`) from which
 the box counts as having cut the posterior."""
@@ -194,6 +200,21 @@ def next_box(
     return new
 
 
+def tail_at_faces(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
+    """(2 x q) the posterior's density at each face against its peak, per coordinate: the
+    draws within ``strip`` box widths of a face over those within the same width around the
+    median (a Gaussian cut at 8 sd: ~1e-14, no draw there; a Cauchy cut at 20 scales: ~3e-3).
+
+    Args:
+        draws_local: (n x q) posterior draws in the box's unit cube.
+        strip: strip width as a fraction of the box width.
+    """
+    u = np.asarray(draws_local, dtype=np.float64)
+    centre = np.median(u, axis=0)
+    peak = np.maximum(np.sum(np.abs(u - centre) < strip / 2, axis=0), 1)
+    return np.stack([np.sum(u < strip, axis=0), np.sum(u > 1.0 - strip, axis=0)]) / peak
+
+
 def box_edge(
     draws_local: np.ndarray,
     box: np.ndarray,
@@ -206,10 +227,12 @@ def box_edge(
 ) -> Reason | None:
     """``search_box_edge`` when the final box cut the posterior.
 
-    Two kinds of evidence: the final posterior presses against an inner box face, or an
+    Evidence: the final posterior presses against an inner box face; its density at an
+    inner face is not negligible against its peak (:data:`TAIL_RATIO`: heavy tails); an
     evaluation *outside* the box has a log L within :func:`posterior_reach` of the best
     (posterior mass the box left out, e.g. a second mode: no draw can press against a
-    face when the mass lies beyond it; outside probe, session 25).
+    face when the mass lies beyond it); or a surrogate of all of C_w is sure of mass
+    outside (``outside_share``). Outside probe, session 25.
 
     Args:
         draws_local: (n x q) final posterior draws in the box's unit cube.
@@ -252,6 +275,21 @@ def box_edge(
                 + "): the box left out posterior mass"
             )
             reason["evaluations_outside_box"] = int(outside.sum())
+    tails = tail_at_faces(draws_local) * _inner_faces(box, bounds)
+    tails[hit] = 0.0  # already said: pressed against that face
+    if (tails > TAIL_RATIO).any():
+        parts = [
+            f"{names[k]} ({side} face {box[s, k]:.4g}: {tails[s, k]:.1e} of the peak)"
+            for s, side in enumerate(("lower", "upper"))
+            for k in range(len(names))
+            if tails[s, k] > TAIL_RATIO
+        ]
+        findings.append(
+            "the posterior's density at the search box's faces is not negligible against its "
+            "peak — heavy tails the box cut off: " + ", ".join(parts)
+        )
+        touched |= {names[k] for k in np.nonzero((tails > TAIL_RATIO).any(axis=0))[0]}
+        reason["tail_at_face"] = float(tails.max())
     if outside_share >= OUTSIDE_SHARE:
         findings.append(
             f"a surrogate of all of C_w puts at least {100 * outside_share:.0f} % of the "

@@ -22,6 +22,7 @@ from susp_bo.calibration.trust_region import (
     next_box,
     points_within_reach,
     posterior_reach,
+    tail_at_faces,
     to_global_unit,
     training_mask,
 )
@@ -140,6 +141,26 @@ def test_box_edge_flags_an_evaluation_within_reach_outside_the_box() -> None:
     # beyond the reach (8.3 - 6.9): no evidence of mass outside; nor without evaluations
     assert box_edge(draws, box, bounds, ["a", "b"], x=x, y=np.array([8.3, 1.0, -20.0])) is None
     assert box_edge(draws, box, bounds, ["a", "b"]) is None
+
+
+def test_box_edge_flags_heavy_tails_the_box_cut_off_not_a_gaussian() -> None:
+    """Outside probe, session 25: a Cauchy of scale 1e-3 with trust_region=True, its box at
+    ±16–24 scales: `trusted`, 95 % intervals half the exact width. Its density at the faces
+    is ~1e-3 of its peak; a Gaussian's at the 8-sd faces is nil."""
+    rng = np.random.default_rng(0)
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    box = np.array([[0.43 - 0.02, 0.61 - 0.02], [0.43 + 0.02, 0.61 + 0.02]])  # ±20 scales
+    cauchy = np.array([0.43, 0.61]) + 1e-3 * rng.standard_cauchy((400_000, 2))
+    inside = np.all((cauchy > box[0]) & (cauchy < box[1]), axis=1)
+    local = (cauchy[inside] - box[0]) / (box[1] - box[0])
+    assert np.all(tail_at_faces(local) > 5e-4) and np.all(face_pressure(local) < 0.01)
+    reason = box_edge(local, box, bounds, ["x", "y"])
+    assert reason is not None and reason["tail_at_face"] > 5e-4
+    assert "heavy tails the box cut off" in reason["message"]
+    gauss = np.array([0.43, 0.61]) + 2.5e-3 * rng.standard_normal((400_000, 2))  # box ±8 sd
+    assert box_edge((gauss - box[0]) / (box[1] - box[0]), box, bounds, ["x", "y"]) is None
+    # a face on C_w's bound is the prior's, not the box's: never flagged
+    assert box_edge(local, box, box, ["x", "y"]) is None
 
 
 def test_to_global_unit_maps_box_coordinates_to_admissible_ones() -> None:
