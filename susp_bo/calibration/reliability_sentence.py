@@ -34,6 +34,8 @@ COMMAND_LINE_ADVICE = {
     "evaluations.sqlite): the box follows one hill, so more budget would refine the same "
     "box; a second hill the data allow means they do not identify the parameters uniquely",
     "poor_mixing": "rerun with more MCMC draws ([mcmc] draws, chains)",
+    "hmc_stuck": 'rerun with [mcmc] sampler = "auto": HMC alone does not cross between '
+    "separated modes, more of its draws would not either",
     "failed_scattered": "make the failing simulations run (the log and evaluations.sqlite "
     "name them; narrowing the admissible interval will not avoid failures that strike "
     "anywhere), then rerun",
@@ -66,6 +68,8 @@ PYTHON_ADVICE = {
     "C_w: CalibrationSettings(trust_region=True) refines in a box that follows it; or " + _MORE,
     "poor_mixing": "rerun with more MCMC draws (CalibrationSettings(mcmc_samples=..., "
     "mcmc_chains=...))",
+    "hmc_stuck": 'rerun with CalibrationSettings(mcmc_sampler="auto"): HMC alone does not '
+    "cross between separated modes, more of its draws would not either",
     "failed_scattered": "make the failing evaluations run (result.X where result.y is NaN; "
     "narrowing the bounds will not avoid failures that strike anywhere), then rerun",
     "multimodal": "look at the pair plot; " + _MORE + " so that the search refines every "
@@ -104,6 +108,8 @@ def sentence(
     code = "noisy" if noisy else "failed_scattered" if scattered else first["code"]
     if code == "not_converged" and first.get("posterior_width") is not None:
         code = "narrow" if "narrow" in table else code
+    if code == "poor_mixing" and evidence.get("sampler") == "hmc":
+        code = "hmc_stuck"  # the caller forced HMC (outside probe, session 25)
     if code == "search_box_edge" and (
         first.get("evaluations_outside_box")
         or first.get("mass_outside_box")

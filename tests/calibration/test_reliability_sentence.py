@@ -116,3 +116,12 @@ def test_mass_left_outside_the_box_is_not_told_to_add_budget() -> None:
     line = sentence(left, {"budget": 200}, "command_line")
     assert "look at the evaluations outside the search box" in line and "--budget" not in line
     assert "CalibrationSettings(trust_region=False)" in sentence(left, {"budget": 200}, "python")
+
+
+def test_forced_hmc_that_did_not_mix_is_told_to_use_auto_not_more_draws() -> None:
+    """Outside probe, session 25: mcmc_sampler="hmc" on modes 10 sd apart was told to draw
+    more, which cannot help HMC cross the gap."""
+    reasons = ({"code": "poor_mixing", "message": "m"},)
+    line = sentence(reasons, {"budget": 200, "sampler": "hmc"}, "python")
+    assert 'CalibrationSettings(mcmc_sampler="auto")' in line
+    assert "mcmc_samples" in sentence(reasons, {"budget": 200, "sampler": "random_walk"}, "python")
