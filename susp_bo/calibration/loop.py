@@ -276,6 +276,11 @@ def calibrate(
             "local_search: the evaluator exposes no spectra (spectra/log_likelihood_of); "
             "running without the local phase"
         )
+
+    def audit_left(x: np.ndarray) -> int:
+        """Evaluations an early stop's audit would spend now (0: too few are left)."""
+        return audit_size(main_budget - x.shape[0], q, settings.audit_share, settings.batch_size)
+
     while x.shape[0] < main_budget:
         iteration += 1
         size = min(settings.batch_size, main_budget - x.shape[0])
@@ -319,9 +324,7 @@ def calibrate(
             )
             continue
         if step.proposal is None:
-            size = audit_size(
-                main_budget - x.shape[0], q, settings.audit_share, settings.batch_size
-            )
+            size = audit_left(x)
             if size and step.stop_reason in ("converged", "ego_converged"):
                 x, y, found = run_audit(
                     evaluate, b, x, y, size, iteration, settings, history, on_iteration, bar
@@ -334,10 +337,8 @@ def calibrate(
                     )
                     basins_done = False
                     continue
-                if audit_size(
-                    main_budget - x.shape[0], q, settings.audit_share, settings.batch_size
-                ):  # nothing found: search on with the audit's points, and if the search
-                    continue  # stops again, audit again with a share of what is left
+                if audit_left(x):  # nothing found: search on with the audit's points, and if
+                    continue  # the search stops again, audit again with a share of what is left
             stop_reason = step.stop_reason
             break
         w_new = from_unit(step.proposal.numpy(), box)

@@ -32,6 +32,7 @@ from susp_bo.calibration.loop_step import (
 from susp_bo.calibration.result import IterationReport
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate
+from susp_bo.calibration.trust_region import best_point
 
 logger = logging.getLogger(__name__)
 
@@ -102,8 +103,7 @@ def run_local_phase(
     bar: Any,
 ) -> tuple[np.ndarray, np.ndarray, LocalSearchResult, int]:
     """The local phase (:mod:`.local_search`) from the best point; its runs join the data."""
-    finite = np.isfinite(y)
-    start = x[finite][int(np.argmax(y[finite]))]
+    start = best_point(x, y)
     cap = int(settings.local_search_fraction * (main_budget - x.shape[0]))
     data = PhaseRecorder(x, y, iteration, history, on_iteration, bar)
 

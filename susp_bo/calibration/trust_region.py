@@ -130,10 +130,15 @@ def held_points(x: np.ndarray, y: np.ndarray, within_reach: bool) -> np.ndarray:
     y = np.asarray(y, dtype=np.float64)
     if within_reach:
         return points_within_reach(x, y)
-    finite = np.isfinite(y)
-    if not finite.any():
+    if not np.isfinite(y).any():
         return x[:0]
-    return x[finite][int(np.argmax(y[finite]))][None, :]
+    return best_point(x, y)[None, :]
+
+
+def best_point(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(q,) the successful evaluation with the highest log L (``y`` needs a finite value)."""
+    finite = np.isfinite(y)
+    return x[finite][int(np.argmax(y[finite]))]
 
 
 def hold_points(box: np.ndarray, held: np.ndarray) -> np.ndarray:
@@ -215,6 +220,20 @@ def tail_at_faces(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
     return np.stack([np.sum(u < strip, axis=0), np.sum(u > 1.0 - strip, axis=0)]) / peak
 
 
+def _faces(
+    mask: np.ndarray, box: np.ndarray, names: Sequence[str], ratio: np.ndarray | None = None
+) -> str:
+    """ "name (side face value[: ratio of the peak])", for each (2 x q) ``mask`` entry."""
+    return ", ".join(
+        f"{names[k]} ({side} face {box[s, k]:.4g}"
+        + ("" if ratio is None else f": {ratio[s, k]:.1e} of the peak")
+        + ")"
+        for s, side in enumerate(("lower", "upper"))
+        for k in range(len(names))
+        if mask[s, k]
+    )
+
+
 def box_edge(
     draws_local: np.ndarray,
     box: np.ndarray,
@@ -251,22 +270,16 @@ def box_edge(
     reason: Reason = {"code": "search_box_edge"}
     touched: set[str] = {names[k] for k in np.nonzero(hit.any(axis=0))[0]}
     if hit.any():
-        parts = [
-            f"{names[k]} ({side} face {box[s, k]:.4g})"
-            for s, side in enumerate(("lower", "upper"))
-            for k in range(len(names))
-            if hit[s, k]
-        ]
         findings.append(
-            "the posterior presses against the search box, which cut it: " + ", ".join(parts)
+            "the posterior presses against the search box, which cut it: " + _faces(hit, box, names)
         )
     if x is not None and y is not None and len(y):
         held = points_within_reach(np.asarray(x, dtype=np.float64), y)
         tol = 1e-9 * (bounds[1] - bounds[0])
-        outside = np.any((held < box[0] - tol) | (held > box[1] + tol), axis=1)
+        past = (held < box[0] - tol) | (held > box[1] + tol)  # (k x q)
+        outside = past.any(axis=1)
         if outside.any():
-            out = held[outside]
-            beyond = np.any((out < box[0] - tol) | (out > box[1] + tol), axis=0)
+            beyond = past[outside].any(axis=0)
             touched |= {names[k] for k in np.nonzero(beyond)[0]}
             findings.append(
                 f"{int(outside.sum())} evaluation(s) outside the search box have log L within "
@@ -278,15 +291,10 @@ def box_edge(
     tails = tail_at_faces(draws_local) * _inner_faces(box, bounds)
     tails[hit] = 0.0  # already said: pressed against that face
     if (tails > TAIL_RATIO).any():
-        parts = [
-            f"{names[k]} ({side} face {box[s, k]:.4g}: {tails[s, k]:.1e} of the peak)"
-            for s, side in enumerate(("lower", "upper"))
-            for k in range(len(names))
-            if tails[s, k] > TAIL_RATIO
-        ]
         findings.append(
             "the posterior's density at the search box's faces is not negligible against its "
-            "peak — heavy tails the box cut off: " + ", ".join(parts)
+            "peak — heavy tails the box cut off: "
+            + _faces(tails > TAIL_RATIO, box, names, ratio=tails)
         )
         touched |= {names[k] for k in np.nonzero((tails > TAIL_RATIO).any(axis=0))[0]}
         reason["tail_at_face"] = float(tails.max())
