@@ -256,15 +256,22 @@ def paired_expected_log_likelihood(
     residual coordinates are then independent N(0, λ_k): −½ Σ (ln 2πλ_k + z_k²/λ_k) has
     mean −½ Σ (ln 2πλ_k + 1) and sd √(D/2). Profiling τ_c adds ½ max(0, χ²₁)-like
     gains, 0.25 nats per channel on average (included in the mean; the sd is unchanged
-    to this order). With no sensor noise (all λ = 0) there is nothing to compare
-    against: returns ``(nan, nan)``.
+    to this order). A fixed τ_c (``model_error_sigma``) is part of B: the coordinates are
+    then N(0, λ_k + τ_c²) and the mean −½ Σ (ln 2π(λ_k + τ_c²) + 1) — before session 26 τ_c
+    was left out here, and a study with a fixed ``[output_error] sigma`` was told
+    ``below_expected_fit`` (tens of sd below) on data its model reproduced exactly. With no
+    sensor noise (all λ = 0) and τ_c profiled there is nothing to compare against: returns
+    ``(nan, nan)``.
     """
     y = np.asarray(measured, dtype=np.float64)
     _, lam = whitened_residuals(y, y, error)
-    if np.any(lam <= 0.0):
-        return math.nan, math.nan
     n = lam.size
-    mean = -0.5 * float(np.sum(np.log(2.0 * math.pi * lam) + 1.0))
+    variance = lam
+    if error.model_error_sigma is not None:
+        variance = lam + np.asarray(error.model_error_sigma, dtype=np.float64)[:, None] ** 2
+    if np.any(variance <= 0.0):
+        return math.nan, math.nan
+    mean = -0.5 * float(np.sum(np.log(2.0 * math.pi * variance) + 1.0))
     if error.model_error_sigma is None:
         mean += 0.25 * lam.shape[0]
     return mean, math.sqrt(n / 2.0)

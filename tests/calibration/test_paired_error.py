@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -125,13 +126,9 @@ def test_batched_equals_loop_and_bad_shapes_are_refused(rng: np.random.Generator
         PairedOutputError(-1.0, RATE_HZ, (400,), SETTINGS)
 
 
-def test_at_the_truth_the_fast_path_residuals_are_standard_and_log_l_as_expected() -> None:
-    """Linearised rig, exact model, 3 runs, noise 0.01 m/s²: standardised residuals at w_true.
-
-    Measured over 18 runs (6 seeds): mean square 0.965 (0.96–0.97 at noise 0.005–0.05).
-    Here 3 runs x 10 channels x 40 decorrelated bands: the mean square of 1200 unit
-    normals has sd 0.04, so [0.85, 1.15] is a > 3.5 sd band around the measured value.
-    """
+def _fast_path_at_the_truth() -> tuple[np.ndarray, np.ndarray, PairedOutputError]:
+    """Linearised rig, exact model, 3 runs of 30 s, noise 0.01 m/s²: measured and simulated
+    spectra at w_true (ν x C x F each) and the paired error model (τ_c profiled)."""
     spec = load_rig_spec("hst_trailer").with_simulation(duration_s=30.0)
     sim = spec.simulation
     noise = 0.01
@@ -150,8 +147,18 @@ def test_at_the_truth_the_fast_path_residuals_are_standard_and_log_l_as_expected
         clean = log_amplitude_spectra(s, sim.sample_rate_hz, response.channels, spec.spectrum)
         simulated.append(with_noise_floor(clean.log_amplitude, noise, sim.sample_rate_hz))
         n_samples.append(s.shape[1])
-    y, h = np.stack(measured), np.stack(simulated)
     error = PairedOutputError(noise, sim.sample_rate_hz, tuple(n_samples), spec.spectrum)
+    return np.stack(measured), np.stack(simulated), error
+
+
+def test_at_the_truth_the_fast_path_residuals_are_standard_and_log_l_as_expected() -> None:
+    """Linearised rig, exact model, 3 runs, noise 0.01 m/s²: standardised residuals at w_true.
+
+    Measured over 18 runs (6 seeds): mean square 0.965 (0.96–0.97 at noise 0.005–0.05).
+    Here 3 runs x 10 channels x 40 decorrelated bands: the mean square of 1200 unit
+    normals has sd 0.04, so [0.85, 1.15] is a > 3.5 sd band around the measured value.
+    """
+    y, h, error = _fast_path_at_the_truth()
     z, lam = whitened_residuals(y, h, error)
     mean_square = float(np.mean(z**2 / lam))
     assert 0.85 < mean_square < 1.15
@@ -160,6 +167,29 @@ def test_at_the_truth_the_fast_path_residuals_are_standard_and_log_l_as_expected
     assert abs(value - mean) < 4 * sd
     # the replicate-scatter σ_B of the unpaired model is far larger than this residual
     assert float(np.sqrt(np.mean((y - h) ** 2))) < 0.05
+
+
+def test_a_fixed_model_error_is_part_of_the_log_l_expected_at_the_truth() -> None:
+    """A fixed τ_c (``[output_error] sigma`` of a paired study) is part of B, so the log L
+    expected at the truth includes it. Session 26's probe: before, the expectation left it
+    out and every such study was ``below_expected_fit`` — 37 sd below at τ = 0.01 and 73 sd
+    at 0.03 on data its model reproduced exactly. Here: data with a model error of exactly
+    τ (white, as B says) give log L at the truth within 4 sd of the expectation, and data
+    without one are not below it."""
+    y, h, profiled = _fast_path_at_the_truth()
+    channels = y.shape[1]
+    for tau in (0.01, 0.03):
+        error = replace(profiled, model_error_sigma=(tau,) * channels)
+        # model error white over the decorrelated bands: drawn in the projected coordinates
+        shifted = y.copy()
+        for i in range(y.shape[0]):
+            _, basis = error.projection(i)
+            draws = np.random.default_rng([26, i]).normal(0.0, tau, (channels, basis.shape[1]))
+            shifted[i] += draws @ basis.T
+        mean, sd = expected_log_likelihood_at_truth(error, shifted)
+        assert abs(paired_log_likelihood(shifted, h, error) - mean) < 4 * sd, tau
+        mean, sd = expected_log_likelihood_at_truth(error, y)
+        assert paired_log_likelihood(y, h, error) > mean - 3 * sd, tau
 
 
 def _noise_redraw_scores(
