@@ -39,11 +39,14 @@ price of intervals computed as if the model were exact; a fixed model-error floo
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
+from susp_bo.calibration.local_search import SpectraEvaluator
 from susp_bo.calibration.reliability_rules import Reason
+from susp_bo.calibration.result import CalibrationResult
 
 LIMIT = 3.0
 """F above this is a systematic misfit (module docstring: exact models gave 0.85–0.99 on
@@ -96,3 +99,47 @@ def systematic_misfit(ratio: float, runs: int, limit: float = LIMIT) -> Reason |
         ),
         "lack_of_fit_ratio": float(ratio),
     }
+
+
+def with_lack_of_fit(
+    result: CalibrationResult, evaluator: SpectraEvaluator, measured: np.ndarray
+) -> CalibrationResult:
+    """``result`` with the lack-of-fit ratio of its best evaluated point in the verdict's
+    evidence (``lack_of_fit_ratio``) and, above :data:`.lack_of_fit.LIMIT`, the reason
+    ``below_expected_fit`` (:mod:`susp_bo.calibration.lack_of_fit`: the check of the fit
+    that does not rest on B's scale). The best point's spectra come from the store (no new
+    simulation); with one run, or a best point whose spectra failed, the ratio is NaN and
+    the verdict unchanged.
+
+    Args:
+        result: a finished calibration (its verdict is re-worded for a Python caller; a
+            study re-words it for the command line).
+        evaluator: what calibrated it, with ``spectra(W)`` -> (b x ν x C x F), run i on run
+            i's track (:class:`.evaluation.LikelihoodEvaluator`).
+        measured: (ν x C x F) the measured spectra.
+    """
+    reliability = result.reliability
+    finite = np.isfinite(result.y)
+    if reliability is None or not np.any(finite):
+        return result
+    best = result.X[int(np.argmax(np.where(finite, result.y, -np.inf)))]
+    simulated = evaluator.spectra(np.asarray(best, dtype=np.float64)[None])[0]
+    ratio = (
+        lack_of_fit_ratio(measured, simulated) if simulated.shape == measured.shape else math.nan
+    )
+    evidence = dict(reliability.evidence) | {
+        "lack_of_fit_ratio": None if math.isnan(ratio) else ratio
+    }
+    reasons = [dict(r) for r in reliability.reasons]
+    misfit = systematic_misfit(ratio, int(measured.shape[0]))
+    if misfit is not None:
+        earlier = next((r for r in reasons if r["code"] == "below_expected_fit"), None)
+        if earlier is not None:
+            earlier["lack_of_fit_ratio"] = misfit["lack_of_fit_ratio"]
+        else:
+            reasons.append(misfit)
+    verdict = "not_trusted" if reasons else "trusted"
+    updated = dataclasses.replace(
+        reliability, verdict=verdict, reasons=tuple(reasons), evidence=evidence
+    )
+    return dataclasses.replace(result, reliability=updated.worded_for("python"))

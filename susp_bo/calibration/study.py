@@ -46,7 +46,7 @@ import numpy as np
 
 from susp_bo import __version__
 from susp_bo.calibration.evaluation import LikelihoodEvaluator
-from susp_bo.calibration.lack_of_fit import lack_of_fit_ratio, systematic_misfit
+from susp_bo.calibration.lack_of_fit import with_lack_of_fit
 from susp_bo.calibration.likelihood import (
     expected_log_likelihood_at_truth as expected_at_truth_under,
 )
@@ -352,42 +352,6 @@ def run_study(
         if result.reliability is not None:  # the commands print it last, under their summary
             log.info("reliability: %s", result.reliability.sentence)
     return payload, result
-
-
-def with_lack_of_fit(
-    result: CalibrationResult, evaluator: LikelihoodEvaluator, measured: np.ndarray
-) -> CalibrationResult:
-    """``result`` with the lack-of-fit ratio of its best evaluated point in the verdict's
-    evidence (``lack_of_fit_ratio``) and, above :data:`.lack_of_fit.LIMIT`, the reason
-    ``below_expected_fit`` (:mod:`susp_bo.calibration.lack_of_fit`: the check of the fit
-    that does not rest on B's scale). The best point's spectra come from the store (no new
-    simulation); with one run, or a best point whose spectra failed, the ratio is NaN and
-    the verdict unchanged."""
-    reliability = result.reliability
-    finite = np.isfinite(result.y)
-    if reliability is None or not np.any(finite):
-        return result
-    best = result.X[int(np.argmax(np.where(finite, result.y, -np.inf)))]
-    simulated = evaluator.spectra(np.asarray(best, dtype=np.float64)[None])[0]
-    ratio = (
-        lack_of_fit_ratio(measured, simulated) if simulated.shape == measured.shape else math.nan
-    )
-    evidence = dict(reliability.evidence) | {
-        "lack_of_fit_ratio": None if math.isnan(ratio) else ratio
-    }
-    reasons = [dict(r) for r in reliability.reasons]
-    misfit = systematic_misfit(ratio, int(measured.shape[0]))
-    if misfit is not None:
-        earlier = next((r for r in reasons if r["code"] == "below_expected_fit"), None)
-        if earlier is not None:
-            earlier["lack_of_fit_ratio"] = misfit["lack_of_fit_ratio"]
-        else:
-            reasons.append(misfit)
-    verdict = "not_trusted" if reasons else "trusted"
-    updated = dataclasses.replace(
-        reliability, verdict=verdict, reasons=tuple(reasons), evidence=evidence
-    )
-    return dataclasses.replace(result, reliability=updated.worded_for("python"))
 
 
 def save_samples(path: Path, samples: np.ndarray, limit: int = MAX_SAVED_SAMPLES) -> Path:
