@@ -131,6 +131,8 @@ from fast_path import FastPathProblem, Options, demo_settings, sbc_draw  # noqa:
 from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 from scipy import stats  # noqa: E402
 
+from susp_bo.calibration.lack_of_fit import with_lack_of_fit  # noqa: E402
+from susp_bo.calibration.likelihood import expected_log_likelihood_at_truth  # noqa: E402
 from susp_bo.calibration.loop import (  # noqa: E402
     IterationReport,
     calibrate,
@@ -230,6 +232,11 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
             initial_design_size=min(30, budget - budget // 2 - 2),
             seed=settings.seed + 1,
         )
+    # as a study does (session 26: before, neither below_expected_fit nor the lack of fit
+    # could fire here, so their false alarms on exact models went unmeasured)
+    at_truth = expected_log_likelihood_at_truth(
+        problem.error, problem.measured, problem.spec.spectrum.frequencies_hz()
+    )
     result = calibrate(
         problem,
         bounds if zoom_box is None else zoom_box,
@@ -237,7 +244,10 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         settings,
         progress=False,
         on_iteration=report,
+        expected_at_truth=at_truth if all(map(math.isfinite, at_truth)) else None,
     )
+    verdict_before = None if result.reliability is None else result.reliability.verdict
+    result = with_lack_of_fit(result, problem, problem.measured)
     draws = result.draws.reshape(-1, len(names))
     truth_log_l = problem.log_l(truth)
     expected = (
@@ -258,6 +268,7 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         "ess_min": float(np.min(result.summary.ess)),
         "check": None if result.check is None else result.check.verdict,
         "verdict": None if result.reliability is None else result.reliability.verdict,
+        "verdict_before_lack_of_fit": verdict_before,
         "reasons": [] if result.reliability is None else list(result.reliability.codes),
         "evidence": None if result.reliability is None else dict(result.reliability.evidence),
         "search_box": None if result.search_box is None else result.search_box.tolist(),
