@@ -10,7 +10,8 @@ same seed and data, typically on two machines, or on one machine under different
   in posterior sd;
 - ``result.json["numerics"]["machine_independent"]`` of each side, since a run whose CPU
   code paths were not pinned (``susp_bo/numerics.py``) is not expected to match across
-  machines.
+  machines (exit 1 unless both are true); the rest of ``numerics`` records the machine's
+  environment and is not compared.
 
 Prints a report and exits 0 when the two results are identical, 1 when they differ, 2 on
 bad input::
@@ -40,8 +41,11 @@ from typing import Any
 
 import numpy as np
 
-RUN_KEYS = ("wall_time_s", "data")
-"""``result.json`` keys that describe the run (time, where the data was), not the result."""
+RUN_KEYS = ("wall_time_s", "data", "numerics")
+"""``result.json`` keys that describe the run (time, where the data was, the CPU code paths
+in effect), not the result. ``numerics`` records the environment of the machine (on a CPU
+with AVX-512 ``NPY_DISABLE_CPU_FEATURES`` is set, on one without it is not): its
+``machine_independent`` is printed for each side and must be true on both for a match."""
 
 
 def numbers(value: Any) -> list[float]:
@@ -130,6 +134,9 @@ def main(argv: list[str] | None = None) -> int:
             f"{name}: numerics machine_independent = {pinned}, "
             f"torch {numerics.get('torch')}, numpy {numerics.get('numpy')}"
         )
+    pinned_both = all(r.get("numerics", {}).get("machine_independent") is True for r in (a, b))
+    if not pinned_both:
+        print("numerics: not pinned on both sides — a match across machines is not expected")
     differing = compare_results(a, b)
     if differing:
         print(f"result.json: {len(differing)} key(s) differ")
@@ -159,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"posterior_samples.npy: differ; largest relative sd gap {gap:.3g}")
     else:
         print("posterior_samples.npy: not in both folders, not compared")
-    return 0 if not differing and same_draws else 1
+    return 0 if not differing and same_draws and pinned_both else 1
 
 
 if __name__ == "__main__":
