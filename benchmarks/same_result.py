@@ -19,7 +19,7 @@ bad input::
     python benchmarks/same_result.py DIR_A DIR_B
 
 Either side may be a ``result.json`` file instead of a folder, e.g. the kept reference of
-the README's demo (``benchmarks/reference/demo_amd_epyc_zen3_result.json``); the draws are
+the README's demo (``benchmarks/reference/demo_amd_epyc_zen4_result.json``); the draws are
 then compared by the SHA-256 each side's folder holds, printed for both (the README gives
 the reference's).
 
