@@ -319,8 +319,10 @@ def run_study(
                 expected_at_truth=expected_log_likelihood_at_truth(study),
                 design=design,
             )
-            n_simulations = store.count()
+            # the lack of fit's Gauss–Newton points (if any) are stored simulations too:
+            # counted after them, a resumed study reports what an uninterrupted one does
             result = with_lack_of_fit(result, evaluator, study.measured)
+            n_simulations = store.count()
             if result.reliability is not None:  # a study's advice: its flags and keys
                 result = dataclasses.replace(
                     result, reliability=result.reliability.worded_for("command_line")

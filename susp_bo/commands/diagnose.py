@@ -427,8 +427,9 @@ def run_diagnose(args: argparse.Namespace) -> int:
         "ranking on the linearised rig"
         + ("; FORCED on a calibration that is not trusted" if not reliability.fit_finished else "")
         + (
-            "; the calibration finished but fits the data worse than its output-error model "
-            "expects at the true parameters (below_expected_fit): looking for what is missing"
+            "; the calibration finished but does not reproduce the data as an exact model "
+            "would (below_expected_fit: a fit worse than its output-error model expects at the "
+            "true parameters, or residuals every run shares): looking for what is missing"
             if reliability.fit_finished and not reliability.trusted
             else ""
         ),

@@ -89,6 +89,19 @@ class _DamperEvaluator:
 _DAMPER = "yaw_damper_damping"
 
 
+class _FailingAfterTheBestPoint(_DamperEvaluator):
+    """The same simulator, whose runs fail (NaN spectra) after the first call."""
+
+    def __init__(self, problem: DiagnosisProblem) -> None:
+        super().__init__(problem)
+        self.calls = 0
+
+    def spectra(self, W: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        out = super().spectra(W)
+        return out if self.calls == 1 else np.full_like(out, np.nan)
+
+
 @pytest.mark.parametrize(("conicity", "fires"), [(None, False), (0.15, True)])
 def test_a_calibration_of_data_from_another_vehicle_is_refused(
     conicity: float | None, fires: bool
@@ -126,6 +139,23 @@ def test_a_calibration_of_data_from_another_vehicle_is_refused(
         assert checked.reliability.codes == ("below_expected_fit",)
         assert "share a systematic part" in checked.reliability.reasons[0]["message"]
         assert checked.reliability.sentence.startswith("Not trusted: the 3 runs' residuals")
+        # a simulation that fails during the Gauss–Newton steps cannot clear the alarm
+        # (second review: it kept this result trusted)
+        failing = _FailingAfterTheBestPoint(problem)
+        again = with_lack_of_fit(result, failing, problem.measured)
+        assert again.reliability.codes == ("below_expected_fit",)
+        assert again.reliability.evidence["lack_of_fit_after_steps"] > LIMIT
+        # a result another rule refused keeps its reasons; F is recorded
+        refused = dataclasses.replace(
+            result,
+            reliability=dataclasses.replace(
+                result.reliability,
+                verdict="not_trusted",
+                reasons=({"code": "poor_mixing", "message": "test"},),
+            ),
+        )
+        kept = with_lack_of_fit(refused, evaluator, problem.measured).reliability
+        assert kept.codes == ("poor_mixing",) and kept.evidence["lack_of_fit_ratio"] > LIMIT
         return
     assert lower <= WORN_TRUTH[_DAMPER] <= upper
     assert evidence["lack_of_fit_ratio"] < LIMIT / 2

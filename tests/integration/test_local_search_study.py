@@ -63,4 +63,6 @@ local = true
     ratio = np.array(result["posterior_sd"]) / np.array(local["laplace_sd"])
     assert np.all((ratio > 0.67) & (ratio < 1.5)), ratio
     assert result["reliability"]["verdict"] == "trusted", result["reliability"]["sentence"]
+    # the study judged the fit from its runs' residuals too (lack_of_fit.py): ≈ 1 here
+    assert 0.3 < result["reliability"]["evidence"]["lack_of_fit_ratio"] < 2.0
     assert "Trusted" in done.stderr.strip().splitlines()[-1]
