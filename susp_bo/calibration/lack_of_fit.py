@@ -65,6 +65,7 @@ import numpy as np
 from susp_bo.calibration.local_search import SpectraEvaluator
 from susp_bo.calibration.reliability_rules import Reason
 from susp_bo.calibration.result import CalibrationResult
+from susp_bo.calibration.trust_region import best_point
 from susp_bo.numerics import one_blas_thread
 
 LIMIT = 3.0
@@ -151,15 +152,29 @@ def projected_lack_of_fit_ratio(
             f"measured, simulated, jacobian: shapes {y.shape}, {h.shape}, {jac.shape}; "
             "expected (ν x C x F) twice and (q x ν x C x F)"
         )
-    r = (y - h).ravel()
     a = jac.reshape(jac.shape[0], -1)
-    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(a))):
+    if not (np.all(np.isfinite(y - h)) and np.all(np.isfinite(a))):
         return math.nan
-    with one_blas_thread():  # q x q normal equations: the same bits under any load
+    return _ratio_after(y, h, a, _gauss_newton_step(y, h, a))
+
+
+def _gauss_newton_step(y: np.ndarray, h: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """(q,) δ = argmin ‖(y − h) − aᵀ δ‖² for the (q x ν C F) flattened Jacobian ``a``, by
+    the column-scaled q x q normal equations on one BLAS thread (the same bits under any
+    load)."""
+    with one_blas_thread():
         gram = a @ a.T
         scale = np.sqrt(np.maximum(np.diag(gram), np.finfo(float).tiny))
-        step = np.linalg.lstsq(gram / np.outer(scale, scale), (a @ r) / scale, rcond=1e-12)[0]
-        remaining = r - (step / scale) @ a
+        step = np.linalg.lstsq(
+            gram / np.outer(scale, scale), (a @ (y - h).ravel()) / scale, rcond=1e-12
+        )[0]
+    return step / scale
+
+
+def _ratio_after(y: np.ndarray, h: np.ndarray, a: np.ndarray, step: np.ndarray) -> float:
+    """F of the residual (y − h) − aᵀ ``step``: what the linear step leaves."""
+    with one_blas_thread():
+        remaining = (y - h).ravel() - step @ a
     return lack_of_fit_ratio(y, y - remaining.reshape(y.shape))
 
 
@@ -198,7 +213,7 @@ def with_lack_of_fit(
     if reliability is None or not np.any(finite):
         return result
     y = np.asarray(measured, dtype=np.float64)
-    best = np.asarray(result.X[int(np.argmax(np.where(finite, result.y, -np.inf)))], float)
+    best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
     simulated = evaluator.spectra(best[None])[0]
     ratio = lack_of_fit_ratio(y, simulated) if simulated.shape == y.shape else math.nan
     evidence = dict(reliability.evidence) | {
@@ -241,15 +256,10 @@ def _after_gauss_newton_steps(
         a = jacobian.reshape(len(steps), -1)
         if not np.all(np.isfinite(a)):
             return smallest
-        with one_blas_thread():
-            gram = a @ a.T
-            scale = np.sqrt(np.maximum(np.diag(gram), np.finfo(float).tiny))
-            move = np.linalg.lstsq(
-                gram / np.outer(scale, scale), (a @ (y - h).ravel()) / scale, rcond=1e-12
-            )[0]
-        target = point + move / scale
+        move = _gauss_newton_step(y, h, a)
+        target = point + move
         if np.all((lower <= target) & (target <= upper)):  # a fit C_w allows (review)
-            smallest = min(smallest, projected_lack_of_fit_ratio(y, h, jacobian))
+            smallest = min(smallest, _ratio_after(y, h, a, move))
         if smallest <= LIMIT / 2:  # clearly an exact fit: no further step needed
             break
         point = np.clip(target, lower, upper)
