@@ -245,6 +245,7 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         progress=False,
         on_iteration=report,
         expected_at_truth=at_truth if all(map(math.isfinite, at_truth)) else None,
+        lack_of_fit=False,  # applied below, after the verdict before it is recorded
     )
     verdict_before = None if result.reliability is None else result.reliability.verdict
     result = with_lack_of_fit(result, problem, problem.measured)

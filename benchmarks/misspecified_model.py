@@ -138,6 +138,7 @@ def run(change: str, error_model: str, seed: int, model_error: float | None) -> 
         settings,
         progress=False,
         expected_at_truth=expected if all(map(math.isfinite, expected)) else None,
+        lack_of_fit=False,  # the verdict before the rule, then with it
     )
     after = with_lack_of_fit(before, evaluator, problem.measured)
     truth_vector = np.array([WORN_TRUTH[n] for n in NAMES])

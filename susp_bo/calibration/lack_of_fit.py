@@ -41,12 +41,13 @@ noise bias is common to every run, so F does not follow the F distribution's tai
 limit :data:`LIMIT` = 3 is set above the exact-model values measured at converged points
 (up to 1.40), not from a quantile — close to the smallest misfits caught (3.6).
 
-The verdict uses it on results no other rule refused (:func:`with_lack_of_fit`; a study
-applies it, :mod:`.study`): a refused result needs no second reason, and its best point
-may be far from the optimum. F is taken at the best evaluated point and, when it exceeds
-the limit there, again after up to three Gauss–Newton steps, so that a best point short of
-the optimum (whose residual is the parameters' own signature, shared by every run) is not
-mistaken for a model error.
+The verdict uses it on results no other rule refused (:func:`with_lack_of_fit`;
+:func:`.loop.calibrate` applies it whenever its evaluator exposes the spectra and ν ≥ 2
+measured runs — a study, ``susp-bo diagnose``'s recalibrations, the Python API): a refused
+result needs no second reason, and its best point may be far from the optimum. F is taken
+at the best evaluated point and, when it exceeds the limit there, again after up to three
+Gauss–Newton steps, so that a best point short of the optimum (whose residual is the
+parameters' own signature, shared by every run) is not mistaken for a model error.
 
 What it cannot see: a model error that every run shows *and* that a change of the
 calibrated parameters reproduces (the fit absorbs it): a lateral bump stop at 15 mm, paired,
@@ -73,35 +74,106 @@ LIMIT = 3.0
 converged points, the demo 1.39; the smallest misfit caught 3.6)."""
 
 
-def lack_of_fit_ratio(measured: np.ndarray, simulated: np.ndarray) -> float:
-    """F: the residual every run shares against the scatter between runs (module docstring).
+WINDOW_BINS = 8
+"""Half-width (frequency bins) of the window over which each bin's pure-error variance is
+pooled for its weight (:func:`pure_error_weights`): 17 bins x (ν − 1) runs' scatter."""
+FLOOR_SHARE = 1e-3
+"""A bin's pooled pure-error variance is taken as at least this share of its channel's
+median (:func:`pure_error_weights`): a numerical guard (no bin weighs more than 1000x a
+typical one), far below the range a log-amplitude spectrum's bands span."""
 
-    Args:
-        measured: (ν x C x F) measured log-amplitude spectra.
-        simulated: (ν x C x F) simulated spectra, run i on run i's track.
 
-    Returns:
-        F (dimensionless, ≈ 1 for an exact model); NaN with fewer than 2 runs, non-finite
-        spectra or no scatter between runs.
-
-    Raises:
-        ValueError: shapes that are not (ν x C x F) and equal.
-    """
+def _checked(measured: np.ndarray, simulated: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     y = np.asarray(measured, dtype=np.float64)
     h = np.asarray(simulated, dtype=np.float64)
     if y.ndim != 3 or h.shape != y.shape:
         raise ValueError(
             f"measured, simulated: shapes {y.shape}, {h.shape}; expected two (ν x C x F)"
         )
+    return y, h
+
+
+def _pure_error(r: np.ndarray) -> np.ndarray:
+    """(C x F) each bin's scatter between the runs, Σ_i (r_i − r̄)² / (ν − 1)."""
+    return np.sum((r - r.mean(axis=0)) ** 2, axis=0) / (r.shape[0] - 1)
+
+
+def pure_error_weights(measured: np.ndarray, simulated: np.ndarray) -> np.ndarray:
+    """(C x F) each bin's weight in F: 1 / its pure-error variance, pooled over neighbours.
+
+    A bin's own scatter between ν runs has ν − 1 degrees of freedom, too few to divide by;
+    pooled over the :data:`WINDOW_BINS` bins on either side in the same channel (fewer at
+    the ends; the bin itself left out, so that its weight is independent of its own
+    residuals) it has up to 16 (ν − 1), and it is held at :data:`FLOOR_SHARE` of the
+    channel's median at least. So a systematic residual counts against the noise of its
+    own band, not against the noisiest bands' (session 26's review: with equal weights a
+    shared offset of 3 pure-error sd in the quietest quarter of the bins left F at 1.00).
+
+    Args:
+        measured: (ν x C x F) measured spectra, ν ≥ 2.
+        simulated: (ν x C x F) simulated spectra, run i on run i's track.
+
+    Returns:
+        (C x F) weights (1 / (log-amplitude)²); NaN where the residuals are not finite.
+
+    Raises:
+        ValueError: shapes that are not (ν x C x F) and equal, or ν < 2.
+    """
+    y, h = _checked(measured, simulated)
+    if y.shape[0] < 2:
+        raise ValueError(f"measured: {y.shape[0]} run(s); the scatter between runs needs 2")
+    pure = _pure_error(y - h)
+    # the bin itself left out: a weight that knew the bin's own scatter would favour bins
+    # whose scatter came out small by chance, and F would be biased up (1.29 at ν = 2)
+    kernel = np.ones(2 * WINDOW_BINS + 1)
+    kernel[WINDOW_BINS] = 0.0
+    inner = slice(WINDOW_BINS, WINDOW_BINS + pure.shape[-1])  # "same" for any length
+
+    def pooled_sum(row: np.ndarray) -> np.ndarray:
+        return np.convolve(row, kernel, mode="full")[inner]
+
+    counts = pooled_sum(np.ones(pure.shape[-1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pooled = np.stack([pooled_sum(row) for row in pure]) / counts
+    floor = FLOOR_SHARE * np.median(pooled, axis=-1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 1.0 / np.maximum(pooled, floor)
+
+
+def lack_of_fit_ratio(
+    measured: np.ndarray, simulated: np.ndarray, weights: np.ndarray | None = None
+) -> float:
+    """F: the residual every run shares against the scatter between runs (module docstring).
+
+    F = ν Σ_b w_b r̄_b² / Σ_b w_b s_b², with r̄_b the residual's mean over the runs and
+    s_b² its scatter between them in bin b; equal weights give the classical ratio.
+
+    Args:
+        measured: (ν x C x F) measured log-amplitude spectra.
+        simulated: (ν x C x F) simulated spectra, run i on run i's track.
+        weights: (C x F) bin weights; None = :func:`pure_error_weights` of these residuals.
+
+    Returns:
+        F (dimensionless, ≈ 1 for an exact model); NaN with fewer than 2 runs, non-finite
+        spectra or weights, or no scatter between runs.
+
+    Raises:
+        ValueError: shapes that are not (ν x C x F) and equal, or weights not (C x F).
+    """
+    y, h = _checked(measured, simulated)
     nu = y.shape[0]
     r = y - h
     if nu < 2 or not np.all(np.isfinite(r)):
         return math.nan
-    mean = r.mean(axis=0)
-    pure = float(np.sum((r - mean) ** 2)) / (mean.size * (nu - 1))
+    w = pure_error_weights(y, h) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != y.shape[1:]:
+        raise ValueError(f"weights: shape {w.shape}; expected (C x F) = {y.shape[1:]}")
+    if not np.all(np.isfinite(w)):
+        return math.nan
+    pure = float(np.sum(w * _pure_error(r)))
     if pure <= 0.0:
         return math.nan
-    return nu * float(np.sum(mean**2)) / mean.size / pure
+    return nu * float(np.sum(w * r.mean(axis=0) ** 2)) / pure
 
 
 def systematic_misfit(ratio: float, runs: int, limit: float = LIMIT) -> Reason | None:
@@ -155,27 +227,36 @@ def projected_lack_of_fit_ratio(
     a = jac.reshape(jac.shape[0], -1)
     if not (np.all(np.isfinite(y - h)) and np.all(np.isfinite(a))):
         return math.nan
-    return _ratio_after(y, h, a, _gauss_newton_step(y, h, a))
+    w = pure_error_weights(y, h)
+    if not np.all(np.isfinite(w)):
+        return math.nan
+    return _ratio_after(y, h, a, _gauss_newton_step(y, h, a, w), w)
 
 
-def _gauss_newton_step(y: np.ndarray, h: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """(q,) δ = argmin ‖(y − h) − aᵀ δ‖² for the (q x ν C F) flattened Jacobian ``a``, by
-    the column-scaled q x q normal equations on one BLAS thread (the same bits under any
-    load)."""
+def _gauss_newton_step(y: np.ndarray, h: np.ndarray, a: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(q,) δ = argmin Σ w ((y − h) − aᵀ δ)² for the (q x ν C F) flattened Jacobian ``a``
+    and the (C x F) bin weights ``w`` (every run alike), by the column-scaled q x q normal
+    equations on one BLAS thread (the same bits under any load)."""
+    root = np.sqrt(np.broadcast_to(w, y.shape)).ravel()
     with one_blas_thread():
-        gram = a @ a.T
+        scaled = a * root
+        gram = scaled @ scaled.T
         scale = np.sqrt(np.maximum(np.diag(gram), np.finfo(float).tiny))
         step = np.linalg.lstsq(
-            gram / np.outer(scale, scale), (a @ (y - h).ravel()) / scale, rcond=1e-12
+            gram / np.outer(scale, scale),
+            (scaled @ ((y - h).ravel() * root)) / scale,
+            rcond=1e-12,
         )[0]
     return step / scale
 
 
-def _ratio_after(y: np.ndarray, h: np.ndarray, a: np.ndarray, step: np.ndarray) -> float:
-    """F of the residual (y − h) − aᵀ ``step``: what the linear step leaves."""
+def _ratio_after(
+    y: np.ndarray, h: np.ndarray, a: np.ndarray, step: np.ndarray, w: np.ndarray
+) -> float:
+    """F (bin weights ``w``) of the residual (y − h) − aᵀ ``step``: what the step leaves."""
     with one_blas_thread():
         remaining = (y - h).ravel() - step @ a
-    return lack_of_fit_ratio(y, y - remaining.reshape(y.shape))
+    return lack_of_fit_ratio(y, y - remaining.reshape(y.shape), w)
 
 
 GAUSS_NEWTON_STEPS = 3
@@ -203,7 +284,8 @@ def with_lack_of_fit(
 
     Args:
         result: a finished calibration (its verdict is re-worded for a Python caller; a
-            study re-words it for the command line).
+            study re-words it for the command line). :func:`.loop.calibrate` calls this
+            itself (its ``lack_of_fit``); call it on a result calibrated without.
         evaluator: what calibrated it, with ``spectra(W)`` -> (b x ν x C x F), run i on run
             i's track (:class:`.evaluation.LikelihoodEvaluator`).
         measured: (ν x C x F) the measured spectra.
@@ -215,12 +297,16 @@ def with_lack_of_fit(
     y = np.asarray(measured, dtype=np.float64)
     best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
     simulated = evaluator.spectra(best[None])[0]
-    ratio = lack_of_fit_ratio(y, simulated) if simulated.shape == y.shape else math.nan
+    usable = simulated.shape == y.shape and y.shape[0] >= 2 and np.all(np.isfinite(simulated))
+    weights = pure_error_weights(y, simulated) if usable else None
+    ratio = lack_of_fit_ratio(y, simulated, weights) if usable else math.nan
+    plain = lack_of_fit_ratio(y, simulated, np.ones(y.shape[1:])) if usable else math.nan
     evidence = dict(reliability.evidence) | {
-        "lack_of_fit_ratio": None if math.isnan(ratio) else ratio
+        "lack_of_fit_ratio": None if math.isnan(ratio) else ratio,
+        "lack_of_fit_unweighted": None if math.isnan(plain) else plain,
     }
-    if reliability.trusted and math.isfinite(ratio) and ratio > LIMIT:
-        ratio = _after_gauss_newton_steps(result, evaluator, y, best, simulated, ratio)
+    if reliability.trusted and math.isfinite(ratio) and ratio > LIMIT and weights is not None:
+        ratio = _after_gauss_newton_steps(result, evaluator, y, best, simulated, ratio, weights)
         evidence["lack_of_fit_after_steps"] = None if math.isnan(ratio) else ratio
     misfit = systematic_misfit(ratio, int(y.shape[0])) if reliability.trusted else None
     if misfit is None:
@@ -240,11 +326,13 @@ def _after_gauss_newton_steps(
     best: np.ndarray,
     simulated: np.ndarray,
     ratio: float,
+    weights: np.ndarray,
 ) -> float:
     """The smallest F over the Gauss–Newton points from ``best`` and their linear steps
-    that stay in C_w (see :func:`with_lack_of_fit`). A simulation that fails ends the steps
-    with the smallest F found so far — at least F at ``best``, above the limit — so a
-    failure cannot clear the alarm (second review, session 26: it did)."""
+    that stay in C_w (see :func:`with_lack_of_fit`), all with the bin ``weights`` of
+    ``best`` (a weighted least-squares fit: the weights held fixed). A simulation that fails
+    ends the steps with the smallest F found so far — at least F at ``best``, above the
+    limit — so a failure cannot clear the alarm (second review, session 26: it did)."""
     lower, upper = np.asarray(result.bounds, dtype=np.float64)
     sd = np.asarray(result.summary.sd, dtype=np.float64)
     base = np.where(np.isfinite(sd) & (sd > 0), sd, 1e-3 * (upper - lower))
@@ -256,15 +344,15 @@ def _after_gauss_newton_steps(
         a = jacobian.reshape(len(steps), -1)
         if not np.all(np.isfinite(a)):
             return smallest
-        move = _gauss_newton_step(y, h, a)
+        move = _gauss_newton_step(y, h, a, weights)
         target = point + move
         if np.all((lower <= target) & (target <= upper)):  # a fit C_w allows (review)
-            smallest = min(smallest, _ratio_after(y, h, a, move))
+            smallest = min(smallest, _ratio_after(y, h, a, move, weights))
         if smallest <= LIMIT / 2:  # clearly an exact fit: no further step needed
             break
         point = np.clip(target, lower, upper)
         h = evaluator.spectra(point[None])[0]
         if not np.all(np.isfinite(h)):
             return smallest
-        smallest = min(smallest, lack_of_fit_ratio(y, h))
+        smallest = min(smallest, lack_of_fit_ratio(y, h, weights))
     return smallest

@@ -26,7 +26,12 @@ One step of 2–3 (refit, then propose a batch or stop) is :func:`.loop_step.pro
 Before the first evaluation the budget is checked against what q needs
 (:func:`.budget.budget_requirement`); a smaller one raises
 :class:`BudgetTooSmallError` unless ``settings.allow_small_budget``. After the MCMC
-the result gets its reliability verdict (:func:`.reliability.assess`).
+the result gets its reliability verdict (:func:`.reliability.assess`); with an evaluator
+that exposes its spectra and the ν ≥ 2 measured runs (``spectra`` and ``measured``, as
+:class:`.evaluation.LikelihoodEvaluator` does), the verdict also weighs the lack of fit
+between the runs (:func:`.lack_of_fit.with_lack_of_fit`: a model that misses an effect
+every run shows), whoever calls — a study, ``susp-bo diagnose``'s recalibration or the
+Python API (session 27: before, only a study applied it).
 
 Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
 for the surrogate they are imputed with the lowest finite log L observed so far
@@ -64,6 +69,7 @@ from susp_bo.calibration.design import (
 )
 from susp_bo.calibration.exploration_audit import audit_size, run_audit
 from susp_bo.calibration.iteration_record import record_iteration
+from susp_bo.calibration.lack_of_fit import with_lack_of_fit
 from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator
 from susp_bo.calibration.loop_phases import run_basin_phase, run_local_phase
 from susp_bo.calibration.loop_step import (
@@ -164,6 +170,7 @@ def calibrate(
     design: np.ndarray | None = None,
     expected_at_truth: tuple[float, float] | None = None,
     initial_points: np.ndarray | None = None,
+    lack_of_fit: bool = True,
 ) -> CalibrationResult:
     """Bayesian calibration of w on C_w from log L evaluations (the paper's four steps).
 
@@ -188,6 +195,12 @@ def calibrate(
         initial_points: (m x q) finite points (physical units, clipped to the bounds) evaluated
             with the design, which has m points fewer (a warm start: e.g. a previous
             fit's maximum); None = none.
+        lack_of_fit: weigh the lack of fit between the measured runs in the verdict when
+            ``evaluate`` exposes ``spectra(W)`` and ``measured`` ((ν x C x F), ν ≥ 2):
+            F at the best point, and Gauss–Newton steps from it when F is high on an
+            otherwise trusted result (:func:`.lack_of_fit.with_lack_of_fit`; those runs are
+            beyond ``max_evaluations`` and not in the data). False = the verdict of the
+            other rules alone (a benchmark's "before").
 
     Returns:
         The :class:`CalibrationResult` (with its reliability verdict).
@@ -426,9 +439,8 @@ def calibrate(
         evaluated_ok=np.isfinite(y),
         searched_in_box=boxed,
     )
-    logger.info(reliability.sentence)
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)
-    return CalibrationResult(
+    result = CalibrationResult(
         names=tuple(names),
         bounds=b,
         X=x,
@@ -447,3 +459,10 @@ def calibrate(
         basins=tuple(climbs),
         local_search_superseded=superseded,
     )
+    measured = getattr(evaluate, "measured", None)
+    spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator
+    if lack_of_fit and callable(spectra) and np.ndim(measured) == 3:
+        result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
+    if result.reliability is not None:
+        logger.info(result.reliability.sentence)
+    return result

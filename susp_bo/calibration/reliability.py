@@ -96,6 +96,7 @@ from susp_bo.calibration.reliability_rules import (
     checked_expected_at_truth,
     multimodal,
     not_converged,
+    plausible_max_log_likelihood,
     poor_mixing,
     surrogate_misfit,
 )
@@ -117,6 +118,7 @@ __all__ = [
     "failed_region",
     "multimodal",
     "not_converged",
+    "plausible_max_log_likelihood",
     "poor_mixing",
     "surrogate_misfit",
 ]
@@ -283,6 +285,7 @@ def assess(
             posterior_width=(
                 math.nan if searched_in_box or not u.size else float(np.max(np.std(u, axis=0)))
             ),
+            plausible_max=plausible_max_log_likelihood(expected_at_truth, q),
         ),
         below_expected_fit(best_log_likelihood, expected_at_truth),
         failed,

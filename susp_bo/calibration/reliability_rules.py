@@ -39,6 +39,7 @@ def not_converged(
     uncertainty_tolerance: float = 0.3,
     draws_sd: float = math.nan,
     posterior_width: float = math.nan,
+    plausible_max: float = math.nan,
 ) -> Reason | None:
     """``not_converged`` when the search did not reach the optimum (module docstring).
 
@@ -59,18 +60,32 @@ def not_converged(
         posterior_width: the draws' widest sd as a share of C_w, for a search without a box
             that follows the posterior (NaN otherwise); below :data:`NARROW_SHARE` the reason
             carries it, and the advice names the trust region.
+        plausible_max: the most log L the output-error model allows at any parameters
+            (:func:`plausible_max_log_likelihood`; NaN = none known). A predicted maximum
+            above it, with the best observed below it, is the surrogate extrapolating: the
+            search is unfinished, but the gap it quotes is no measure of how far (session
+            26's probe: a predicted 1.5·10⁶ nats beside an expected 5 275 ± 27), and the
+            message says so.
     """
     findings: list[str] = []
     reason: Reason = {"code": "not_converged"}
     gap = predicted_max - best_log_likelihood
     allowed = gap_tolerance + z * max(predicted_max_sd, 0.0)
     if not math.isfinite(best_log_likelihood) or gap > allowed:
-        findings.append(
+        finding = (
             f"the search did not reach the optimum (best log L {best_log_likelihood:.1f} is "
             f"{gap:.1f} nats below the surrogate's predicted maximum {predicted_max:.1f} "
             f"± {predicted_max_sd:.2g})"
         )
         reason.update(optimum_gap_nats=float(gap), optimum_gap_allowed_nats=float(allowed))
+        if best_log_likelihood <= plausible_max < predicted_max:
+            finding += (
+                f"; that maximum is above the most the output-error model allows at any "
+                f"parameters (about {plausible_max:.1f}): the surrogate extrapolates where "
+                "nothing was evaluated, so the gap is no measure of how far the optimum is"
+            )
+            reason.update(plausible_max=float(plausible_max))
+        findings.append(finding)
     unfinished = None
     if stop_reason == "budget":
         if last_phase is None:
@@ -98,6 +113,32 @@ def not_converged(
         reason["posterior_width"] = float(posterior_width)
     reason["message"] = "; ".join(findings)
     return reason
+
+
+def plausible_max_log_likelihood(
+    expected_at_truth: tuple[float, float] | None,
+    q: int,
+    *,
+    gap_tolerance: float = 1.0,
+    truth_z: float = 3.0,
+    level: float = 0.999,
+) -> float:
+    """The most log L the output-error model allows at any parameters (nats; NaN = none).
+
+    Under B, log L at the true parameters is (mean ± sd) = ``expected_at_truth``, and for
+    a regular model the maximum over q parameters lies ½ χ²_q above it (Wilks); so the
+    maximum is below mean + ``truth_z`` sd + ½ χ²_q(``level``) + ``gap_tolerance`` but for
+    a chance of about 1 − ``level``. This bound is B's word, not the data's: where the best
+    evaluated log L already exceeds it (the unpaired B, whose scale is the scatter between
+    tracks, puts the truth's log L far above its own expectation) it says nothing, and
+    :func:`not_converged` does not use it.
+    """
+    if expected_at_truth is None or q < 1:
+        return math.nan
+    from scipy import stats  # only here: the rules module stays light to import
+
+    mean, sd = expected_at_truth
+    return mean + truth_z * sd + 0.5 * float(stats.chi2.ppf(level, q)) + gap_tolerance
 
 
 def below_expected_fit(

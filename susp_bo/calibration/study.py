@@ -46,7 +46,6 @@ import numpy as np
 
 from susp_bo import __version__
 from susp_bo.calibration.evaluation import LikelihoodEvaluator
-from susp_bo.calibration.lack_of_fit import with_lack_of_fit
 from susp_bo.calibration.likelihood import (
     expected_log_likelihood_at_truth as expected_at_truth_under,
 )
@@ -319,9 +318,10 @@ def run_study(
                 expected_at_truth=expected_log_likelihood_at_truth(study),
                 design=design,
             )
-            # the lack of fit's Gauss–Newton points (if any) are stored simulations too:
-            # counted after them, a resumed study reports what an uninterrupted one does
-            result = with_lack_of_fit(result, evaluator, study.measured)
+            # calibrate weighs the lack of fit between the runs (the evaluator exposes the
+            # spectra and the measured runs); its Gauss–Newton points (if any) are stored
+            # simulations too: counted after them, a resumed study reports what an
+            # uninterrupted one does
             n_simulations = store.count()
             if result.reliability is not None:  # a study's advice: its flags and keys
                 result = dataclasses.replace(

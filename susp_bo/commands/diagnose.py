@@ -473,11 +473,20 @@ def run_diagnose(args: argparse.Namespace) -> int:
         and augmented_verdict.get("verdict") != "trusted"
         and reliability.fit_finished
     ):  # the effect is named; the recalibrated values are not an answer
-        codes = ", ".join(str(r.get("code")) for r in augmented_verdict.get("reasons", []))
-        document["sentence"] += (
-            f" The augmented model's calibration is NOT trusted ({codes or 'no verdict'}): "
-            "its parameter values are not an answer; diagnose again with a larger --budget."
-        )
+        reasons = augmented_verdict.get("reasons", [])
+        codes = ", ".join(str(r.get("code")) for r in reasons)
+        if reasons and {r.get("code") for r in reasons} == {"below_expected_fit"}:
+            # a finished fit that still misses the data: more budget is not the remedy
+            document["sentence"] += (
+                " The augmented model's calibration is NOT trusted (below_expected_fit: "
+                f"{reasons[0].get('message', '')}): the named effect does not explain all of "
+                "the disagreement, and its parameter values are not an answer."
+            )
+        else:
+            document["sentence"] += (
+                f" The augmented model's calibration is NOT trusted ({codes or 'no verdict'}): "
+                "its parameter values are not an answer; diagnose again with a larger --budget."
+            )
     write_json(out / DOCUMENT_NAME, json_ready(document))
     forced_note = (
         ""

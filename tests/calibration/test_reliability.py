@@ -8,14 +8,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from susp_bo.calibration.budget import budget_requirement
 from susp_bo.calibration.loop import BudgetTooSmallError, CalibrationSettings, calibrate
 from susp_bo.calibration.reliability import (
     Reliability,
+    assess,
     at_bound,
     below_expected_fit,
     checked_expected_at_truth,
     multimodal,
     not_converged,
+    plausible_max_log_likelihood,
     poor_mixing,
     surrogate_misfit,
 )
@@ -58,6 +61,7 @@ def test_not_converged_sub_rules() -> None:
     assert unexplored is not None and "0.80 nats > 0.3" in unexplored["message"]
     assert unexplored["draws_sd_nats"] == pytest.approx(0.8)
     assert not_converged(**_converged(draws_sd=0.1)) is None
+
     # a posterior under 1 % of C_w wide, searched without a box, is marked (the advice then
     # names the trust region); a wide one, or none measured, is not; nor does it fire alone
     narrow = not_converged(**_converged(draws_sd=0.8, posterior_width=2e-4))
@@ -67,6 +71,53 @@ def test_not_converged_sub_rules() -> None:
     assert "posterior_width" not in unexplored
     assert not_converged(**_converged(posterior_width=2e-4)) is None
     assert not_converged(**_converged(draws_sd=float("nan"))) is None
+
+
+def test_a_predicted_maximum_beyond_what_b_allows_is_named_as_extrapolation() -> None:
+    """Session 26's probe: ``not_converged`` quoted a surrogate maximum of 1.5·10⁶ nats
+    beside B's expected 5 275 ± 27 at the truth, as if the optimum were that far. The bound:
+    mean + 3 sd + ½ χ²_q(0.999) + 1 (q = 4: 5 275 + 81 + 9.23 + 1)."""
+    ceiling = plausible_max_log_likelihood((5275.0, 27.0), 4)
+    assert ceiling == pytest.approx(5275.0 + 81.0 + 0.5 * 18.4668 + 1.0, abs=1e-3)
+    assert np.isnan(plausible_max_log_likelihood(None, 4))
+    probe = not_converged(
+        **_converged(best_log_likelihood=4000.0, predicted_max=1.5e6, plausible_max=ceiling)
+    )
+    assert probe is not None and probe["plausible_max"] == pytest.approx(ceiling)
+    assert "the surrogate extrapolates" in probe["message"]
+    assert "no measure of how far" in probe["message"]
+    # a predicted maximum B allows: the gap is quoted alone
+    near = not_converged(
+        **_converged(best_log_likelihood=5200.0, predicted_max=5300.0, plausible_max=ceiling)
+    )
+    assert near is not None and "extrapolates" not in near["message"]
+    assert "plausible_max" not in near
+    # a best point already above B's bound (the unpaired B's scale): B says nothing here
+    above = not_converged(
+        **_converged(best_log_likelihood=6000.0, predicted_max=1.5e6, plausible_max=ceiling)
+    )
+    assert above is not None and "extrapolates" not in above["message"]
+    # the verdict applies the bound from the expectation it is given, and leads with it
+    verdict = assess(
+        names=["a", "b", "c", "d"],
+        bounds=np.array([[0.0] * 4, [1.0] * 4]),
+        budget=300,
+        requirement=budget_requirement(4, None, 4, 8),
+        best_log_likelihood=4000.0,
+        predicted_max=1.5e6,
+        predicted_max_sd=10.0,
+        stop_reason="converged",
+        last_phase="refine",
+        last_criterion=0.01,
+        draws_unit=np.random.default_rng(0).uniform(0.4, 0.6, (4000, 4)),
+        r_hat=np.ones(4),
+        ess=np.full(4, 5000.0),
+        check=None,
+        expected_at_truth=(5275.0, 27.0),
+    )
+    assert verdict.codes[:2] == ("not_converged", "below_expected_fit")
+    assert verdict.reasons[0]["plausible_max"] == pytest.approx(ceiling)
+    assert "the surrogate extrapolates" in verdict.sentence
 
 
 def test_below_expected_fit_fires_only_far_below_the_log_likelihood_expected_at_the_truth() -> None:

@@ -221,6 +221,9 @@ def test_diagnose_names_a_hidden_carbody_bending_mode_and_the_model_gets_better(
     assert report["augmented_reliability"]["verdict"] == "trusted", report["augmented_reliability"][
         "sentence"
     ]
+    # and the lack of fit between the runs weighed in it (session 27: before, only a study's
+    # own calibration applied that rule): the augmented model leaves none
+    assert 0.0 < report["augmented_reliability"]["evidence"]["lack_of_fit_ratio"] < 3.0
     recalibrated = json.loads((tmp_path / "diagnosis" / "augmented" / "result.json").read_text())
     names = recalibrated["parameters"]
     lo, hi = recalibrated["interval95"][names.index("carbody_bending_frequency_hz")]
