@@ -8,8 +8,10 @@ model's — calibrated on q = 4 dampers (the worn truth of the scenarios) with t
 loop settings (local phase), paired or unpaired output error, as a study would (the log L
 expected at the truth passed, so ``below_expected_fit`` can fire). Each run prints the
 verdict *before* and *after* the lack-of-fit rule (:mod:`susp_bo.calibration.lack_of_fit`,
-which a study applies), the truths inside their 95 % intervals, the largest
-|z| = |truth − mean| / sd, the largest bias in % of the true value, and F.
+which :func:`~susp_bo.calibration.loop.calibrate` applies), the truths inside their 95 %
+intervals, the largest |z| = |truth − mean| / sd, the largest bias in % of the true value,
+and F (weighted, as the rule uses it), F after the Gauss–Newton steps when they ran, and
+the equal-weight F of session 26 for comparison.
 
 A result is *trusted and wrong* when it is ``trusted`` with some |z| > 3. Usage::
 
@@ -50,6 +52,8 @@ from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_
 
 CHANGES = {
     "none": None,
+    "conicity_0.103": ("parameter", "contact_equivalent_conicity", 0.103),
+    "conicity_0.105": ("parameter", "contact_equivalent_conicity", 0.105),
     "conicity_0.11": ("parameter", "contact_equivalent_conicity", 0.11),
     "conicity_0.15": ("parameter", "contact_equivalent_conicity", 0.15),
     "carbody_bending_9hz": (
@@ -157,6 +161,8 @@ def run(change: str, error_model: str, seed: int, model_error: float | None) -> 
         "max_z": float(np.max(z)),
         "max_bias_pct": float(np.max(np.abs(mean - truth_vector) / truth_vector) * 100),
         "F": after.reliability.evidence.get("lack_of_fit_ratio"),
+        "F_steps": after.reliability.evidence.get("lack_of_fit_after_steps"),
+        "F_plain": after.reliability.evidence.get("lack_of_fit_unweighted"),
     }
 
 
@@ -181,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--model-error: {args.model_error} must be a finite number > 0")
     print(
         "change                error            seed before       after        inside "
-        "max|z|  bias%      F  reasons",
+        "max|z|  bias%      F F_steps F_plain  reasons",
         flush=True,
     )
     wrong_before = wrong_after = 0
@@ -193,11 +199,14 @@ def main(argv: list[str] | None = None) -> int:
                 bad = row["max_z"] > 3.0
                 wrong_before += bad and row["before"] == "trusted"
                 wrong_after += bad and row["after"] == "trusted"
-                f = row["F"]
+                f, steps, plain = (
+                    "   nan" if row[k] is None else f"{row[k]:6.2f}"
+                    for k in ("F", "F_steps", "F_plain")
+                )
                 print(
                     f"{row['change']:21s} {row['error']:16s} {seed:4d} {row['before']:12s} "
                     f"{row['after']:12s} {row['inside']:6s} {row['max_z']:6.1f} "
-                    f"{row['max_bias_pct']:6.2f} {'   nan' if f is None else f'{f:6.2f}'}  "
+                    f"{row['max_bias_pct']:6.2f} {f}  {steps}  {plain}  "
                     f"{row['reasons']}  ({time.perf_counter() - started:.0f} s)",
                     flush=True,
                 )
