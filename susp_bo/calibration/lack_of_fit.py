@@ -12,34 +12,31 @@ springs put the secondary vertical damper 77 % high.
 
 The classical answer needs no B at all: with ν ≥ 2 runs, the residuals
 r_i = y_i − h(x_i, ŵ) (ν x C x F, each run against the simulation on its own track) split
-into the part every run shares, r̄ = mean_i r_i, and the scatter about it. An exact model
-leaves residuals that are independent between runs (sensor noise, or the mismatch
-between two realizations of the track process), so
+into the part every run shares, r̄ = mean_i r_i, and the scatter about it,
+s_b² = Σ_i (r_ib − r̄_b)² / (ν − 1) in bin b. An exact model leaves residuals that are
+independent between runs (sensor noise, or the mismatch between two realizations of the
+track process), so
 
-    F = [ν Σ r̄² / P] / [Σ_i Σ (r_i − r̄)² / (P (ν − 1))],   P = C F,
+    F = ν Σ_b w_b r̄_b² / Σ_b w_b s_b²
 
 is ≈ 1 (the lack-of-fit against the pure-error mean square of a regression with
 replicates). A model that misses an effect gives every run the same systematic residual,
-and F grows with it. Measured on that probe's cases at the posterior mean: exact model
-0.85–0.99 (paired and unpaired, seeds 0–1); the misspecified unpaired cases 3.6
-(conicity 0.11), 15.9 (a lateral bump stop at 7 mm), 23.5 (conicity 0.15), 127 (a 9 Hz
-carbody bending). Later, on exact models: the demo 1.39, an SBC at the demo's settings
-0.53–1.40, unconverged best points up to 3.12 (README, "When the model is wrong").
-
-Known weaknesses (second review, session 26; not yet fixed): the sums are unweighted, so
-the noisiest bins decide F — a shared offset of 3 pure-error sd in the quietest quarter of
-the bins left F at 1.00 — and the log of a noisy Welch spectrum is biased (−var) alike in
-every run, which F counts as shared: exact data with ν = 20 runs and 0.5–1 m/s² of noise
-gave F 3.5–4.1 (a false alarm). Weighting each bin by its predicted noise variance and
-subtracting the predicted bias (:func:`.welch_noise.noise_residual_moments`) fixes both
-in a first try (conicity 0.11: F 3.6 → 84), but then a best point a fraction of an unpaired
-posterior sd from the paired optimum reads ≈ 3 too, so the Gauss–Newton steps would run on
-most unpaired results: not measured enough to adopt.
+and F grows with it. The weight w_b is 1 / (the scatter s² pooled over the 8 bins on
+either side of b in its channel, b itself left out; :func:`pure_error_weights`), so that a
+systematic residual counts against the noise of its own band. With equal weights (session
+26) the noisiest bins decided F: a shared offset of 3 pure-error sd in the quietest
+quarter of the bins left F at 1.00 (now 5.8, a test), a conicity of 0.103 or 0.105
+against the model's 0.100 gave F 1.3–2.0 with the yaw damper 8–15 % off (now 3.3–6.5),
+and the log of a noisy Welch spectrum, biased alike in every run in its noise-dominated
+bins, gave false alarms at 20 runs and 0.5–1 m/s² of noise (F 3.5–4.1; weighted 1.7).
+Leaving the bin itself out of its weight matters: a weight that knew the bin's own
+scatter favours bins whose scatter came out small by chance, and F was biased up
+(mean 1.29 at ν = 2 on Gaussian residuals; left out, 1.006).
 
 Neighbouring bands are correlated, the noise is heteroscedastic and the log-spectrum's
 noise bias is common to every run, so F does not follow the F distribution's tails: the
-limit :data:`LIMIT` = 3 is set above the exact-model values measured at converged points
-(up to 1.40), not from a quantile — close to the smallest misfits caught (3.6).
+limit :data:`LIMIT` = 3 is set above the exact-model values measured at converged points,
+not from a quantile (README, "When the model is wrong", for the measured values).
 
 The verdict uses it on results no other rule refused (:func:`with_lack_of_fit`;
 :func:`.loop.calibrate` applies it whenever its evaluator exposes the spectra and ν ≥ 2
@@ -70,8 +67,11 @@ from susp_bo.calibration.trust_region import best_point
 from susp_bo.numerics import one_blas_thread
 
 LIMIT = 3.0
-"""F above this is a systematic misfit (module docstring: exact models gave 0.53–1.40 at
-converged points, the demo 1.39; the smallest misfit caught 3.6)."""
+"""F above this is a systematic misfit. Weighted F on exact models (session 27): 0.66–2.33
+at the best points of the linearised benchmark's calibrations, 0.66–1.50 at the fit's
+optimum (ν = 2 and 3), 1.73 at 20 runs with 0.5–1 m/s² of noise, 0.69–1.20 at the
+PyBullet demo's best points (seeds 0–3 and 2024); a conicity 0.105 against the model's
+0.100 gave 3.2 at the optimum (README, "When the model is wrong")."""
 
 
 WINDOW_BINS = 8
