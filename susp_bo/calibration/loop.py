@@ -86,6 +86,7 @@ from susp_bo.calibration.loop_step import (
     torch_state,
 )
 from susp_bo.calibration.mode_jumps import modes_chains_stayed_in
+from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.posterior import check_names, summarize
 from susp_bo.calibration.reliability import (
     POOR_MIXING_R_HAT,
@@ -438,6 +439,8 @@ def calibrate(
         evaluated_unit=(x - b[0]) / (b[1] - b[0]),
         evaluated_ok=np.isfinite(y),
         searched_in_box=boxed,
+        # the paired B's expectation is on the residual's own scale, so it bounds log L
+        expectation_bounds_maximum=isinstance(getattr(evaluate, "error", None), PairedOutputError),
     )
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)
     result = CalibrationResult(
@@ -461,7 +464,7 @@ def calibrate(
     )
     measured = getattr(evaluate, "measured", None)
     spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator
-    if lack_of_fit and callable(spectra) and np.ndim(measured) == 3:
+    if lack_of_fit and callable(spectra) and np.ndim(measured) == 3 and len(measured) >= 2:
         result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
     if result.reliability is not None:
         logger.info(result.reliability.sentence)

@@ -244,6 +244,7 @@ def assess(
     evaluated_ok: np.ndarray | None = None,
     advice_for: AdviceFor = "python",
     searched_in_box: bool = False,
+    expectation_bounds_maximum: bool = False,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -264,6 +265,11 @@ def assess(
         evaluated_unit: (n x q) every evaluated point in the unit cube of C_w, and
         evaluated_ok: (n,) True where its log L was finite (:func:`failed_region`; None:
             no evaluation known to have failed but the check's).
+        expectation_bounds_maximum: ``expected_at_truth`` comes from an output-error model
+            whose scale is the residual's own (the paired B), so it also bounds the
+            maximum of log L (:func:`plausible_max_log_likelihood`, used by
+            :func:`not_converged`'s message). Not under the unpaired B, where the truth's
+            log L sits far above that expectation (second review, session 27).
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
@@ -285,7 +291,11 @@ def assess(
             posterior_width=(
                 math.nan if searched_in_box or not u.size else float(np.max(np.std(u, axis=0)))
             ),
-            plausible_max=plausible_max_log_likelihood(expected_at_truth, q),
+            plausible_max=(
+                plausible_max_log_likelihood(expected_at_truth, q)
+                if expectation_bounds_maximum
+                else math.nan
+            ),
         ),
         below_expected_fit(best_log_likelihood, expected_at_truth),
         failed,

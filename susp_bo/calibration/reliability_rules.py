@@ -128,10 +128,12 @@ def plausible_max_log_likelihood(
     Under B, log L at the true parameters is (mean ± sd) = ``expected_at_truth``, and for
     a regular model the maximum over q parameters lies ½ χ²_q above it (Wilks); so the
     maximum is below mean + ``truth_z`` sd + ½ χ²_q(``level``) + ``gap_tolerance`` but for
-    a chance of about 1 − ``level``. This bound is B's word, not the data's: where the best
-    evaluated log L already exceeds it (the unpaired B, whose scale is the scatter between
-    tracks, puts the truth's log L far above its own expectation) it says nothing, and
-    :func:`not_converged` does not use it.
+    a chance of about 1 − ``level``. This bound is B's word, not the data's, and only the
+    paired B's expectation is on the residual's own scale: the unpaired B, whose scale is
+    the scatter between tracks, puts the truth's log L ≈ 28 sd above its own expectation.
+    So :func:`.reliability.assess` uses the bound only when told that the expectation
+    bounds the maximum (a paired evaluator, :func:`.loop.calibrate`; second review, session
+    27), and :func:`not_converged` not where the best evaluated log L already exceeds it.
     """
     if expected_at_truth is None or q < 1:
         return math.nan

@@ -475,8 +475,9 @@ def run_diagnose(args: argparse.Namespace) -> int:
     ):  # the effect is named; the recalibrated values are not an answer
         reasons = augmented_verdict.get("reasons", [])
         codes = ", ".join(str(r.get("code")) for r in reasons)
-        if reasons and {r.get("code") for r in reasons} == {"below_expected_fit"}:
-            # a finished fit that still misses the data: more budget is not the remedy
+        if len(reasons) == 1 and "lack_of_fit_ratio" in reasons[0]:
+            # the runs share a residual no change of the parameters removes (the Gauss–Newton
+            # steps ran): a finished fit that still misses the data, more budget is no remedy
             document["sentence"] += (
                 " The augmented model's calibration is NOT trusted (below_expected_fit: "
                 f"{reasons[0].get('message', '')}): the named effect does not explain all of "

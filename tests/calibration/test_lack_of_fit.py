@@ -76,6 +76,33 @@ def test_a_shared_offset_in_a_quiet_band_is_found() -> None:
     assert np.median(weights[:, : bins // 8]) > 50 * np.median(weights[:, bins // 2 :])
 
 
+def test_a_bins_weight_knows_nothing_of_its_own_residuals() -> None:
+    """Pooled with the bin itself, a weight favours bins whose scatter came out small by
+    chance and F is biased up (mean 1.29 at ν = 2): the bin is left out of its own weight,
+    so changing its residuals leaves its weight as it was and changes its neighbours'."""
+    rng = np.random.default_rng(5)
+    measured = rng.normal(size=(2, 3, 40))
+    before = pure_error_weights(measured, np.zeros_like(measured))
+    measured[0, 1, 20] += 5.0
+    after = pure_error_weights(measured, np.zeros_like(measured))
+    assert after[1, 20] == before[1, 20]
+    changed = np.flatnonzero(after[1] != before[1])
+    assert set(changed) == set(range(12, 29)) - {20}  # the 8 bins on either side
+    assert np.array_equal(after[[0, 2]], before[[0, 2]])  # other channels untouched
+
+
+def test_a_channel_that_does_not_scatter_keeps_the_rule_on() -> None:
+    """Second review, session 27: one channel whose runs agree exactly (weights 1/0) made F
+    of the whole result NaN. Its weights are now held at the floor, and F stays finite."""
+    rng = np.random.default_rng(2)
+    measured = rng.normal(size=(3, 4, 30))
+    measured[:, 2, :] = 0.3  # every run the same in channel 2
+    weights = pure_error_weights(measured, np.zeros_like(measured))
+    assert np.all(np.isfinite(weights))
+    ratio = lack_of_fit_ratio(measured, np.zeros_like(measured))
+    assert math.isfinite(ratio) and ratio > LIMIT  # the shared 0.3 counts, at the floor
+
+
 def test_one_run_no_scatter_or_failed_spectra_give_nan_and_bad_shapes_are_refused() -> None:
     y = np.ones((1, 2, 5))
     assert math.isnan(lack_of_fit_ratio(y, y))

@@ -97,8 +97,9 @@ def test_a_predicted_maximum_beyond_what_b_allows_is_named_as_extrapolation() ->
         **_converged(best_log_likelihood=6000.0, predicted_max=1.5e6, plausible_max=ceiling)
     )
     assert above is not None and "extrapolates" not in above["message"]
-    # the verdict applies the bound from the expectation it is given, and leads with it
-    verdict = assess(
+    # the verdict applies the bound from the expectation it is given, when that expectation
+    # is on the residual's own scale (the paired B), and leads with it
+    arguments = dict(
         names=["a", "b", "c", "d"],
         bounds=np.array([[0.0] * 4, [1.0] * 4]),
         budget=300,
@@ -115,9 +116,15 @@ def test_a_predicted_maximum_beyond_what_b_allows_is_named_as_extrapolation() ->
         check=None,
         expected_at_truth=(5275.0, 27.0),
     )
+    verdict = assess(**arguments, expectation_bounds_maximum=True)
     assert verdict.codes[:2] == ("not_converged", "below_expected_fit")
     assert verdict.reasons[0]["plausible_max"] == pytest.approx(ceiling)
     assert "the surrogate extrapolates" in verdict.sentence
+    # the unpaired B's expectation is no ceiling (the truth's log L sits ≈ 28 sd above it):
+    # an unfinished unpaired search is not told its surrogate extrapolates (second review)
+    unpaired = assess(**arguments)
+    assert unpaired.codes[:2] == ("not_converged", "below_expected_fit")
+    assert "extrapolates" not in unpaired.sentence and "plausible_max" not in unpaired.reasons[0]
 
 
 def test_below_expected_fit_fires_only_far_below_the_log_likelihood_expected_at_the_truth() -> None:
