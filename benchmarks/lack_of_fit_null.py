@@ -1,0 +1,103 @@
+"""The lack-of-fit ratio at the fit's optimum, on data from the model itself or with one change.
+
+Linearised fast path, the q = 4 dampers of ``benchmarks/misspecified_model.py`` (the same
+scenario rig, 20 s runs): from the true dampers, four weighted Gauss–Newton steps (finite
+differences of 1 %, the bin weights of :func:`~susp_bo.calibration.lack_of_fit.pure_error_weights`
+at the truth) find the optimum of the weighted fit, and four unweighted steps that of the
+equal-weight fit; F is printed at each (weighted / equal weights), with the largest bias of
+the fitted dampers. No surrogate, no sampler: this measures the statistic, not a search.
+Cases are ``change:seed:runs:noise`` (change as in misspecified_model.py, plus
+"conicity_0.103" and "conicity_0.105"). Usage::
+
+    python benchmarks/lack_of_fit_null.py none:0:3:0.01 none:0:2:0.01 none:0:20:0.5 \\
+        conicity_0.105:0:3:0.01
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from misspecified_model import CHANGES, NAMES, StudyEvaluator
+
+from susp_bo.calibration.lack_of_fit import lack_of_fit_ratio, pure_error_weights
+from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_problem
+from susp_bo.numerics import one_blas_thread
+
+STEPS = 4
+
+
+def fitted(
+    evaluator: StudyEvaluator, measured: np.ndarray, start: np.ndarray, weights: np.ndarray
+) -> np.ndarray:
+    """The dampers after :data:`STEPS` Gauss–Newton steps of the ``weights``-weighted fit."""
+    w = start.copy()
+    root = np.sqrt(np.broadcast_to(weights, measured.shape)).ravel()
+    for _ in range(STEPS):
+        h = evaluator.spectra(w[None])[0]
+        d = 0.01 * w
+        jac = (evaluator.spectra(w[None] + np.diag(d)) - h[None]) / d[:, None, None, None]
+        with one_blas_thread():
+            a = jac.reshape(len(w), -1) * root
+            scale = np.linalg.norm(a, axis=1)
+            step = np.linalg.lstsq(
+                (a / scale[:, None]).T, (measured - h).ravel() * root, rcond=None
+            )[0]
+        w = w + step / scale
+    return w
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print one line per case."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("cases", nargs="+", help="change:seed:runs:noise_m_s2")
+    args = parser.parse_args(argv)
+    changes = dict(CHANGES) | {
+        "conicity_0.103": ("parameter", "contact_equivalent_conicity", 0.103),
+        "conicity_0.105": ("parameter", "contact_equivalent_conicity", 0.105),
+    }
+    parsed = []
+    for case in args.cases:
+        parts = case.split(":")
+        if len(parts) != 4 or parts[0] not in changes:
+            parser.error(
+                f"cases: {case!r}; expected change:seed:runs:noise, change one of {sorted(changes)}"
+            )
+        parsed.append((parts[0], int(parts[1]), int(parts[2]), float(parts[3])))
+    spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
+    truth_w = np.array([WORN_TRUTH[n] for n in NAMES], dtype=np.float64)
+    for change, seed, runs, noise in parsed:
+        kind = changes[change]
+        truth, effect = dict(WORN_TRUTH), None
+        if kind is not None and kind[0] == "parameter":
+            truth[kind[1]] = kind[2]
+        elif kind is not None:
+            effect = (kind[1], kind[2])
+        problem = synthesize_problem(
+            spec, effect, truth=truth, nu=runs, seed=seed, noise_m_s2=noise, output_error="paired"
+        )
+        evaluator = StudyEvaluator(problem, problem.paired)
+        y = problem.measured
+        weights = pure_error_weights(y, evaluator.spectra(truth_w[None])[0])
+        weighted = fitted(evaluator, y, truth_w, weights)
+        plain = fitted(evaluator, y, truth_w, np.ones(y.shape[1:]))
+        f_weighted = lack_of_fit_ratio(y, evaluator.spectra(weighted[None])[0], weights)
+        f_plain = lack_of_fit_ratio(y, evaluator.spectra(plain[None])[0], np.ones(y.shape[1:]))
+        bias_weighted = np.max(np.abs(weighted / truth_w - 1)) * 100
+        bias_plain = np.max(np.abs(plain / truth_w - 1)) * 100
+        print(
+            f"{change}:{seed}:{runs}:{noise:g}  F {f_weighted:.2f} (bias {bias_weighted:.2f} %)"
+            f"  equal weights {f_plain:.2f} (bias {bias_plain:.2f} %)",
+            flush=True,
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
