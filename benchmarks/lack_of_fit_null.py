@@ -26,9 +26,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from misspecified_model import CHANGES, NAMES, StudyEvaluator
 
-from susp_bo.calibration.lack_of_fit import lack_of_fit_ratio, pure_error_weights
+from susp_bo.calibration.lack_of_fit import (
+    gauss_newton_step,
+    lack_of_fit_ratio,
+    pure_error_weights,
+)
 from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_problem
-from susp_bo.numerics import one_blas_thread
 
 STEPS = 4
 
@@ -36,20 +39,14 @@ STEPS = 4
 def fitted(
     evaluator: StudyEvaluator, measured: np.ndarray, start: np.ndarray, weights: np.ndarray
 ) -> np.ndarray:
-    """The dampers after :data:`STEPS` Gauss–Newton steps of the ``weights``-weighted fit."""
+    """The dampers after :data:`STEPS` Gauss–Newton steps of the ``weights``-weighted fit
+    (the rule's own step, :func:`~susp_bo.calibration.lack_of_fit.gauss_newton_step`)."""
     w = start.copy()
-    root = np.sqrt(np.broadcast_to(weights, measured.shape)).ravel()
     for _ in range(STEPS):
         h = evaluator.spectra(w[None])[0]
         d = 0.01 * w
         jac = (evaluator.spectra(w[None] + np.diag(d)) - h[None]) / d[:, None, None, None]
-        with one_blas_thread():
-            a = jac.reshape(len(w), -1) * root
-            scale = np.linalg.norm(a, axis=1)
-            step = np.linalg.lstsq(
-                (a / scale[:, None]).T, (measured - h).ravel() * root, rcond=None
-            )[0]
-        w = w + step / scale
+        w = w + gauss_newton_step(measured, h, jac.reshape(len(w), -1), weights)
     return w
 
 

@@ -207,8 +207,9 @@ def projected_lack_of_fit_ratio(
     parameters can remove.
 
     A best point short of the optimum leaves a residual every run shares too (the
-    parameters' own signature); the linear step δ = argmin Σ_i ‖r_i − J_i δ‖² removes it,
-    and F of r − J δ is what is left (:func:`lack_of_fit_ratio`). The q degrees of freedom
+    parameters' own signature); the weighted linear step δ = argmin Σ_i Σ_b w_b (r_ib −
+    J_ib δ)² (the weights of :func:`pure_error_weights` at the point; :func:`gauss_newton_step`)
+    removes it, and F of r − J δ with those weights is what is left. The q degrees of freedom
     the step takes are negligible beside the C F bins.
 
     Args:
@@ -238,10 +239,10 @@ def projected_lack_of_fit_ratio(
     w = pure_error_weights(y, h)
     if not np.all(np.isfinite(w)):
         return math.nan
-    return _ratio_after(y, h, a, _gauss_newton_step(y, h, a, w), w)
+    return _ratio_after(y, h, a, gauss_newton_step(y, h, a, w), w)
 
 
-def _gauss_newton_step(y: np.ndarray, h: np.ndarray, a: np.ndarray, w: np.ndarray) -> np.ndarray:
+def gauss_newton_step(y: np.ndarray, h: np.ndarray, a: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(q,) δ = argmin Σ w ((y − h) − aᵀ δ)² for the (q x ν C F) flattened Jacobian ``a``
     and the (C x F) bin weights ``w`` (every run alike), by the column-scaled q x q normal
     equations on one BLAS thread (the same bits under any load)."""
@@ -352,7 +353,7 @@ def _after_gauss_newton_steps(
         a = jacobian.reshape(len(steps), -1)
         if not np.all(np.isfinite(a)):
             return smallest
-        move = _gauss_newton_step(y, h, a, weights)
+        move = gauss_newton_step(y, h, a, weights)
         target = point + move
         if np.all((lower <= target) & (target <= upper)):  # a fit C_w allows (review)
             smallest = min(smallest, _ratio_after(y, h, a, move, weights))
