@@ -245,6 +245,7 @@ def assess(
     advice_for: AdviceFor = "python",
     searched_in_box: bool = False,
     expectation_bounds_maximum: bool = False,
+    mass_outside_box: float | None = 0.0,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -270,6 +271,9 @@ def assess(
             maximum of log L (:func:`plausible_max_log_likelihood`, used by
             :func:`not_converged`'s message). Not under the unpaired B, where the truth's
             log L sits far above that expectation (second review, session 27).
+        mass_outside_box: with ``searched_in_box``, the lower estimate of the posterior
+            mass outside the box (:func:`.box_mass.share_outside_box`), written to the
+            evidence; None when it could not be estimated (evidence null).
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
@@ -326,6 +330,8 @@ def assess(
         "draws_sd_nats": float(draws_sd) if math.isfinite(draws_sd) else None,
         **failure_evidence,
     }
+    if searched_in_box:
+        evidence["mass_outside_box"] = None if mass_outside_box is None else float(mass_outside_box)
     return Reliability(
         verdict="not_trusted" if reasons else "trusted",
         reasons=tuple(reasons),

@@ -315,17 +315,31 @@ class Surrogate:
         the LOO mean is t_i − α_i / P_ii and the variance 1 / P_ii (standardised units);
         mapped to z and then to the log L scale with the Jacobian of the warping.
         """
-        precision = torch.cholesky_inverse(self._chol)
-        diag = precision.diagonal()
-        targets = self.model.train_targets.detach()
-        loo_mean = (targets - self._alpha / diag) * self._y_std + self._y_mean
-        loo_var = (1.0 / diag) * self._y_std**2
+        loo_mean, loo_var = self._loo_latent()
         z = torch.as_tensor(self.warping.forward(self.train_y), dtype=torch.float64)
         log_pz = -0.5 * (z - loo_mean) ** 2 / loo_var - 0.5 * torch.log(2 * math.pi * loo_var)
         log_py = log_pz.numpy() + self.warping.log_abs_dz_dy(self.train_y)
         k = max(3, math.ceil(top_fraction * self.train_y.size))
         best = np.argsort(self.train_y)[::-1][:k]
         return float(np.mean(log_py[best]))
+
+    def _loo_latent(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Leave-one-out mean and variance of z at the training points ((n,), (n,))."""
+        precision = torch.cholesky_inverse(self._chol)
+        diag = precision.diagonal()
+        targets = self.model.train_targets.detach()
+        loo_mean = (targets - self._alpha / diag) * self._y_std + self._y_mean
+        return loo_mean, (1.0 / diag) * self._y_std**2
+
+    def loo_log_likelihood_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
+        """E[log L̃] (n,) and sd of log L̃ (n,) (nats) at each training point, predicted by
+        the GP without that point (closed form, hyperparameters kept; as
+        :meth:`log_likelihood_uncertainty`)."""
+        mean, var = self._loo_latent()
+        return (
+            self.warping.mean_log_likelihood(mean, var).numpy(),
+            (self.warping.slope(mean) * var.sqrt()).numpy(),
+        )
 
     def latent_mean(self, u: torch.Tensor) -> torch.Tensor:
         """Posterior mean of z at unit-cube points u (m x q) -> (m,), fast path."""

@@ -30,6 +30,7 @@ B is the posterior on C_w whenever B holds its mass — which :func:`box_edge` c
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -242,7 +243,7 @@ def box_edge(
     pressure: float = 0.01,
     x: np.ndarray | None = None,
     y: np.ndarray | None = None,
-    outside_share: float = 0.0,
+    outside_share: float | None = 0.0,
 ) -> Reason | None:
     """``search_box_edge`` when the final box cut the posterior.
 
@@ -263,7 +264,8 @@ def box_edge(
         y: (m,) their log L (nats), NaN for a failed run.
         outside_share: the posterior mass outside the box that a surrogate of all of C_w
             is sure of (:func:`.box_mass.share_outside_box`); at least
-            :data:`OUTSIDE_SHARE` of it is a third kind of evidence (a broad, low mode).
+            :data:`OUTSIDE_SHARE` of it is a third kind of evidence (a broad, low mode);
+            None: not estimated (no evidence either way).
     """
     hit = (face_pressure(draws_local) > pressure) & _inner_faces(box, bounds)
     findings: list[str] = []
@@ -298,9 +300,10 @@ def box_edge(
         )
         touched |= {names[k] for k in np.nonzero((tails > TAIL_RATIO).any(axis=0))[0]}
         reason["tail_at_face"] = float(tails.max())
-    if outside_share >= OUTSIDE_SHARE:
-        findings.append(
-            f"a surrogate of all of C_w puts at least {100 * outside_share:.0f} % of the "
+    if outside_share is not None and outside_share >= OUTSIDE_SHARE:
+        findings.append(  # a lower estimate: rounded down, never "at least 100 %"
+            f"a surrogate of all of C_w puts at least {min(99, math.floor(100 * outside_share))}"
+            " % of the "
             "posterior mass outside the search box (a broad mode whose peak lies below the "
             "best log L)"
         )

@@ -1,13 +1,25 @@
 """The mass a search box left out, by a surrogate of all of C_w: a broad, low mode beyond
-the reach of the best log L is seen; a single mode is not flagged."""
+the reach of the best log L is seen; a single mode is not flagged; a global fit that
+overshoots its own evaluations counts nothing (not estimated)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 from scipy.stats import qmc
 
-from susp_bo.calibration.box_mass import share_outside_box
+from susp_bo.calibration.box_mass import BOX_MASS_SEED, global_fit_overshoot, share_outside_box
+from susp_bo.calibration.loop_step import torch_state
 from susp_bo.calibration.settings import CalibrationSettings
+from susp_bo.calibration.surrogate_fit import fit_surrogate
+from susp_bo.calibration.trust_region import posterior_reach
+
+MONITORING_SPIKE = Path(__file__).parent / "fixtures" / "monitoring_spike_evaluations.npz"
+"""Session 27's monitoring benchmark, wearing train, campaign 5 (q = 2, paired B, ν = 2
+PyBullet runs): the 75 evaluations (unit cube of C_w, log L in nats), the final search
+box and 1 000 of the reported draws; a right answer (both truths inside) that the
+global fit's overshoot made ``not_trusted`` with a "share" of 1.0."""
 
 SPIKE, SLAB = np.array([0.78, 0.72]), np.array([0.35, 0.4])
 
@@ -44,3 +56,27 @@ def test_a_single_mode_leaves_nothing_outside_its_box() -> None:
     assert share_outside_box(x, y, box, draws, CalibrationSettings()) < 0.005
     whole = np.array([[0.0, 0.0], [1.0, 1.0]])
     assert share_outside_box(x, y, whole, draws, CalibrationSettings()) == 0.0
+
+
+def test_a_global_fit_that_overshoots_its_own_evaluations_counts_no_mass() -> None:
+    """The posterior is a spike 10⁻⁴ of C_w wide; the global fit's mean − 2 sd lies
+    thousands of nats above the best log L at C_w's edge (before: share 1.0, refused).
+    Each evaluation predicted without it shows the fit is no lower bound there."""
+    data = np.load(MONITORING_SPIKE)
+    x, y = data["x_unit"], data["y"]
+    settings = CalibrationSettings()
+    with torch_state(settings.num_threads):  # as the loop calls it
+        share = share_outside_box(x, y, data["box_unit"], data["draws_unit"], settings)
+        overshoot = global_fit_overshoot(fit_surrogate(x, y, settings.surrogate, BOX_MASS_SEED), y)
+    assert share is None
+    assert overshoot > 5 * posterior_reach(2)  # 83 nats measured: far past the limit
+
+
+def test_the_spike_and_slab_global_fit_holds_its_own_evaluations() -> None:
+    """The guard leaves session 25's case alone: worst leave-one-out overshoot 0.04 nats."""
+    for log_l in (_spike, _spike_and_slab):
+        x, y, _, _ = _data(log_l)
+        settings = CalibrationSettings()
+        with torch_state(settings.num_threads):
+            surrogate = fit_surrogate(x, y, settings.surrogate, BOX_MASS_SEED)
+        assert global_fit_overshoot(surrogate, y) < 1.0

@@ -125,6 +125,13 @@ def test_a_predicted_maximum_beyond_what_b_allows_is_named_as_extrapolation() ->
     unpaired = assess(**arguments)
     assert unpaired.codes[:2] == ("not_converged", "below_expected_fit")
     assert "extrapolates" not in unpaired.sentence and "plausible_max" not in unpaired.reasons[0]
+    # the box-mass estimate is in the evidence of a boxed search: a share, or null when the
+    # global fit could not give one; absent without a box
+    assert "mass_outside_box" not in unpaired.evidence
+    boxed = assess(**arguments, searched_in_box=True, mass_outside_box=0.004)
+    assert boxed.evidence["mass_outside_box"] == 0.004
+    unknown = assess(**arguments, searched_in_box=True, mass_outside_box=None)
+    assert unknown.evidence["mass_outside_box"] is None and unknown.codes == boxed.codes
 
 
 def test_below_expected_fit_fires_only_far_below_the_log_likelihood_expected_at_the_truth() -> None:

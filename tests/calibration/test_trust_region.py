@@ -143,6 +143,20 @@ def test_box_edge_flags_an_evaluation_within_reach_outside_the_box() -> None:
     assert box_edge(draws, box, bounds, ["a", "b"]) is None
 
 
+def test_box_edge_states_a_lower_estimate_of_the_mass_outside_as_at_most_99_percent() -> None:
+    """Session 27's monitoring run printed "at least 100 %" for a share of 1.0 (a lower
+    estimate, rounded up); a share not estimated (None) is no evidence."""
+    bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
+    box = np.array([[0.7, 0.6], [0.9, 0.9]])
+    draws = _draws(np.array([0.8, 0.75]), np.array([0.016, 0.016]), box)
+    for share, shown in ((1.0, "99"), (0.9996, "99"), (0.5, "50"), (0.029, "2")):
+        reason = box_edge(draws, box, bounds, ["a", "b"], outside_share=share)
+        assert reason is not None and reason["mass_outside_box"] == share
+        assert f"at least {shown} % of the posterior mass" in reason["message"]
+    assert box_edge(draws, box, bounds, ["a", "b"], outside_share=0.01) is None
+    assert box_edge(draws, box, bounds, ["a", "b"], outside_share=None) is None
+
+
 def test_box_edge_flags_heavy_tails_the_box_cut_off_not_a_gaussian() -> None:
     """Outside probe, session 25: a Cauchy of scale 1e-3 with trust_region=True, its box at
     ±16–24 scales: `trusted`, 95 % intervals half the exact width. Its density at the faces
