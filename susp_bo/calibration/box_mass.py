@@ -37,6 +37,7 @@ while on the session-25 spike and slab the worst overshoot is 0.04 nats.
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -47,6 +48,8 @@ from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.surrogate_fit import fit_surrogate
 from susp_bo.calibration.trust_region import posterior_reach
+
+logger = logging.getLogger(__name__)
 
 BOX_MASS_POINTS = 4096
 """Scrambled Sobol' points over C_w at which the global surrogate is read."""
@@ -89,7 +92,17 @@ def share_outside_box(
         return 0.0
     best = float(np.max(y))
     surrogate = fit_surrogate(x_unit, y, settings.surrogate, seed=BOX_MASS_SEED)
-    if global_fit_overshoot(surrogate, y) > posterior_reach(q):
+    overshoot = global_fit_overshoot(surrogate, y)
+    if overshoot > posterior_reach(q):
+        logger.info(
+            "posterior mass outside the search box: not estimated — a surrogate of all of C_w, "
+            "predicting an evaluation it was not fitted on, puts its mean − %g sd %.3g nats "
+            "above it (limit %.3g): it is no lower bound, so a broad, low mode outside the box "
+            "can be neither seen nor ruled out by it",
+            BOX_MASS_SD,
+            overshoot,
+            posterior_reach(q),
+        )
         return None
     with torch.no_grad():
         mean, sd = surrogate.log_likelihood_uncertainty(
