@@ -54,6 +54,12 @@ phase, see :func:`susp_bo.monitoring.warm_start.warm_design_shape`; 1 546 PyBull
 truth, alarm at campaign 6 (delay 0), no false alarm; evaluations: cold first campaigns 63
 (TRAIN-A) and 71 (TRAIN-B); warm ones 15–19 on the healthy TRAIN-B (was 19–23), 26–75 on
 the wearing TRAIN-A.
+
+Session 28 (at f95c75f: the audits of sessions 24–25, the box rules, the weighted lack of
+fit, the box-mass guard; 3 036 PyBullet runs, 1 642 s): all 20 ``trusted``, 36 of 40
+intervals hold the truth (misses |z| 2.1–2.6), alarm at campaign 6 (delay 0), no false
+alarm; every campaign used 74–80 of its 80 evaluations, warm or cold — an early stop now
+audits C_w with what is left (README, "Monitoring").
 """
 
 from __future__ import annotations

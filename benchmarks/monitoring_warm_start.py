@@ -86,6 +86,14 @@ Jacobian that confirms the optimum) and 4 held-out check points; no refinement b
 needed. With ``--design 4`` / ``--design 5`` (``--global-points 1``) seeds 0 and 1 needed
 28–29 evaluations (the surrogate's refinement had to fill in): 6 is the smallest design
 that was 18 in every seed.
+
+Session 28 (at e84876f): **the saving is gone** — with ``--budget 80`` warm 76, cold 74–76
+(seed 0; 0.88–1.00 of the cold runs): an early stop now audits C_w with half the
+evaluations left (064c172: 18 → 49) and audits again while budget is left (e13a6c4:
+49 → 76), bisected with ``--seeds 0 --cold-designs 10``. At the q = 2 minimum budget
+(``--seeds 0 1 2 --cold-designs 10 --budget 34``): warm 3/3 trusted, 30 evaluations,
+MMTV ≤ 0.012; default cold 2/3 (seed 1 ``not_converged``, ``search_box_edge``), cold
+without EGO 1/3. At ``--budget 48``: 3/3 for warm (44) and the default cold (42).
 """
 
 from __future__ import annotations
