@@ -80,6 +80,9 @@ def main() -> None:
     parser.add_argument("--nu", type=int, default=2)
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--budget", type=int, default=20)
+    parser.add_argument(
+        "--warm-budget", type=int, default=None, help="evaluations of a warm campaign"
+    )
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--error", choices=("unpaired", "paired"), default="unpaired")
     parser.add_argument(
@@ -101,6 +104,7 @@ def main() -> None:
         error_model=args.error,
         local_search=args.local_search,
         warm_start=not args.cold_start,
+        warm_budget=args.warm_budget,
     )
     wall = time.perf_counter() - started
     payload = report.pop("monitor")

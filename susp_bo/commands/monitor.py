@@ -43,6 +43,12 @@ def add_parser(sub: Any) -> None:
         help="comma-separated subset of the rig's calibration set (default: all of it)",
     )
     monitor.add_argument("--budget", type=integer(2), help="likelihood evaluations per campaign")
+    monitor.add_argument(
+        "--warm-budget",
+        type=integer(2),
+        help="likelihood evaluations of a campaign that starts warm (default: --budget; an "
+        "early stop spends what is left auditing, so only a smaller budget saves runs)",
+    )
     group = monitor.add_mutually_exclusive_group()
     group.add_argument("--workers", type=integer(0), help="local worker processes")
     group.add_argument("--scheduler", help="Dask scheduler address")
@@ -98,6 +104,7 @@ def run_monitor(args: argparse.Namespace) -> int:
             rig=args.rig,
             parameters=parameters,
             budget=args.budget,
+            warm_budget=args.warm_budget,
             workers=args.workers,
             scheduler=args.scheduler,
             threshold=args.threshold,

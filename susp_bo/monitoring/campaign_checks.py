@@ -11,16 +11,46 @@ not as a study file's keys blamed on the first campaign.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from susp_bo.calibration.budget import budget_message, budget_requirement
+from susp_bo.calibration.budget import budget_message, budget_requirement, design_for_budget
 from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study
 from susp_bo.monitoring.campaign_results import check_campaign_store, read_finished
 from susp_bo.monitoring.campaigns import Campaign
 from susp_bo.study_config import StudyConfig
+
+
+def with_budget(config: StudyConfig, budget: int | None, flag: str) -> StudyConfig:
+    """``config`` with ``budget`` likelihood evaluations (the design cut to fit it, as
+    :func:`~susp_bo.calibration.budget.design_for_budget` does); unchanged for None.
+
+    Raises:
+        ValueError: ``budget`` not an integer >= 2, or one the config refuses; the message
+            names ``flag``.
+    """
+    if budget is None:
+        return config
+    if isinstance(budget, bool) or not isinstance(budget, numbers.Integral) or budget < 2:
+        # checked first: the design size is cut to the budget and would be blamed
+        raise ValueError(
+            f"{flag}: {budget!r} is not allowed; expected an integer >= 2 "
+            "(likelihood evaluations per campaign)"
+        )
+    try:
+        return dataclasses.replace(
+            config,
+            budget=dataclasses.replace(
+                config.budget,
+                max_evaluations=int(budget),
+                initial_design=design_for_budget(config, int(budget)),
+            ),
+        )
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"{flag}: {error}") from None
 
 
 def small_budget_problem(

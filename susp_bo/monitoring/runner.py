@@ -47,7 +47,6 @@ from typing import Any
 import numpy as np
 
 from susp_bo import __version__
-from susp_bo.calibration.budget import design_for_budget
 from susp_bo.calibration.study import RESULT_NAME, SAMPLES_NAME, run_study
 from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.calibration.study_preparation import STORE_NAME
@@ -61,7 +60,7 @@ from susp_bo.monitoring.alarms import (
     summarise_parameter,
     trust,
 )
-from susp_bo.monitoring.campaign_checks import check_campaign, small_budget_problem
+from susp_bo.monitoring.campaign_checks import check_campaign, small_budget_problem, with_budget
 from susp_bo.monitoring.campaign_results import (
     CampaignResultError,
     read_finished,
@@ -86,10 +85,10 @@ class MonitorError(ValueError):
     """A monitoring run that cannot start: bad folder, settings or campaign."""
 
 
-ARGUMENTS = ("rig", "parameters", "budget", "workers", "scheduler")
+ARGUMENTS = ("rig", "parameters", "budget", "warm_budget", "workers", "scheduler")
 API_NAMES = {name: name for name in ARGUMENTS}
 """How errors name the arguments of :func:`monitor` called from Python (its keywords)."""
-CLI_NAMES = {name: f"--{name}" for name in ARGUMENTS}
+CLI_NAMES = {name: "--" + name.replace("_", "-") for name in ARGUMENTS}
 """How errors name them for ``susp-bo monitor`` (its flags)."""
 
 
@@ -168,25 +167,10 @@ def base_config(
         config = parse_study_config({**mapping, **paths}, folder)
     except (ValueError, TypeError) as error:
         raise MonitorError(f"{where}{error}") from None
-    if budget is not None and (
-        isinstance(budget, bool) or not isinstance(budget, numbers.Integral) or budget < 2
-    ):  # checked here: the design size is cut to the budget first and would be blamed
-        raise MonitorError(
-            f"{arguments['budget']}: {budget!r} is not allowed; expected an integer >= 2 "
-            "(likelihood evaluations per campaign)"
-        )
     try:
-        if budget is not None:
-            config = dataclasses.replace(
-                config,
-                budget=dataclasses.replace(
-                    config.budget,
-                    max_evaluations=int(budget),
-                    initial_design=design_for_budget(config, int(budget)),
-                ),
-            )
-    except (ValueError, TypeError) as error:
-        raise MonitorError(f"{arguments['budget']}: {error}") from None
+        config = with_budget(config, budget, arguments["budget"])
+    except ValueError as error:
+        raise MonitorError(str(error)) from None
     if allow_small_budget:
         config = dataclasses.replace(
             config, budget=dataclasses.replace(config.budget, allow_small=True)
@@ -255,6 +239,7 @@ def monitor(
     rig: str | None = None,
     parameters: Sequence[str] | None = None,
     budget: int | None = None,
+    warm_budget: int | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     threshold: float = ALARM_THRESHOLD,
@@ -272,6 +257,11 @@ def monitor(
         rig: rig name or path (default: ``monitor.toml``'s, else ``hst_trailer``).
         parameters: calibrated subset of the rig's calibration set (default: all).
         budget: likelihood evaluations per campaign.
+        warm_budget: likelihood evaluations of a campaign that starts warm (None: ``budget``).
+            A calibration that stops early spends the rest of its budget auditing C_w, so a
+            warm start saves simulations only through a smaller budget; it is checked
+            against the minimum for q like ``budget``, and the verdict is computed as for
+            any campaign.
         workers: local worker processes for the simulator runs (0 = in-process).
         scheduler: Dask scheduler address instead of workers.
         threshold: alarm when P(outside) > threshold on a trusted calibration.
@@ -322,10 +312,18 @@ def monitor(
     )
     configs = {c.campaign_id: campaign_config(base, c, out) for c in campaigns}
     status = {c.campaign_id: campaign_status(configs[c.campaign_id].out) for c in campaigns}
+    try:  # the warm campaigns' budget: the shared config with that many evaluations
+        warm = with_budget(base, warm_budget, argument_names["warm_budget"])
+    except ValueError as error:
+        raise MonitorError(str(error)) from None
     if any(state != "finished" for state in status.values()):  # one budget, refused once
         problem = small_budget_problem(
             base, len(names), budget is not None, argument_names, folder / MONITOR_CONFIG_NAME
         )
+        if problem is None and warm_start and warm_budget is not None:
+            warm_names = {**argument_names, "budget": argument_names["warm_budget"]}
+            path = folder / MONITOR_CONFIG_NAME
+            problem = small_budget_problem(warm, len(names), True, warm_names, path)
         if problem is not None:
             raise MonitorError(problem)
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
@@ -365,10 +363,12 @@ def monitor(
                 before.campaign_id,
                 names,
                 bounds[cid],
-                configs[cid].budget.initial_design,
+                warm.budget.initial_design,
                 configs[cid].seeds.calibration,
                 local_phase=configs[cid].search.local,
             )
+        if start is not None:  # a warm campaign runs on the warm budget
+            configs[cid] = dataclasses.replace(configs[cid], budget=warm.budget)
         how = f"warm start from {start.source}" if start is not None else "cold start"
         _say(progress, f"calibrating {cid} ({status[cid]}, {campaign.n_runs} runs, {how})")
         try:

@@ -328,6 +328,7 @@ def run_scenario(
     error_model: str = "unpaired",
     local_search: bool = False,
     warm_start: bool = True,
+    warm_budget: int | None = None,
 ) -> dict[str, Any]:
     """Write the scenario under ``out/campaigns``, monitor it into ``out/monitor``, score it.
 
@@ -335,8 +336,8 @@ def run_scenario(
     :func:`short_rig`; ``budget`` evaluations per campaign (a third of them the
     design, batches of 4, 4 check points). Resumable: finished campaigns are read back.
     ``error_model`` (``unpaired`` or ``paired``) and ``local_search`` go to the
-    campaigns' ``[output_error] model`` and ``[search] local``; ``warm_start`` to
-    :func:`~susp_bo.monitoring.runner.monitor`.
+    campaigns' ``[output_error] model`` and ``[search] local``; ``warm_start`` and
+    ``warm_budget`` to :func:`~susp_bo.monitoring.runner.monitor`.
 
     Returns:
         ``{"truth", "monitor" (the monitor.json payload), "with_reliability_contract",
@@ -382,7 +383,12 @@ def run_scenario(
         )
     )
     payload = monitor(
-        data, root / "monitor", workers=workers, progress=progress, warm_start=warm_start
+        data,
+        root / "monitor",
+        workers=workers,
+        progress=progress,
+        warm_start=warm_start,
+        warm_budget=warm_budget,
     )
     return {
         "truth": truth,

@@ -73,3 +73,27 @@ def test_enough_or_allowed_is_no_problem(folder: Path, tmp_path: Path) -> None:
     assert small_budget_problem(allowed, 2, True, API_NAMES, config) is None
     small = base_config(folder, tmp_path / "out", budget=13, arguments=API_NAMES)
     assert small_budget_problem(small, 2, True, API_NAMES, config) is not None
+
+
+def test_a_warm_budget_is_checked_like_the_budget_and_named_as_given(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--warm-budget`` (session 28): below the minimum for q, or not an integer >= 2, it is
+    refused before any work, naming itself — not ``--budget``, which is enough here."""
+    out = tmp_path / "out"
+    assert main(["monitor", str(folder), "--out", str(out), "--budget", "14",
+                 "--warm-budget", "5"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.startswith("susp-bo monitor: --warm-budget 5 is below the minimum 14")
+    assert "give --warm-budget 14 or more, or pass --allow-small-budget" in err
+    assert main(["monitor", str(folder), "--out", str(out), "--warm-budget", "1"]) == 2
+    assert "argument --warm-budget: '1' is not allowed" in capsys.readouterr().err
+    with pytest.raises(MonitorError, match=r"^warm_budget 5 is below the minimum 14"):
+        susp_bo.monitor(folder, out, budget=14, warm_budget=5, progress=False)
+    for bad in (True, 1, 2.5):
+        with pytest.raises(MonitorError, match=rf"^warm_budget: {bad!r} is not allowed"):
+            susp_bo.monitor(folder, out, budget=14, warm_budget=bad, progress=False)
+    assert not out.exists()
+    # no warm start asked for: the warm budget plays no part, so it is not refused for size
+    allowed = base_config(folder, out, budget=14, arguments=API_NAMES)
+    assert small_budget_problem(allowed, 2, True, API_NAMES, folder / "monitor.toml") is None
