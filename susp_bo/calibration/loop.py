@@ -404,6 +404,7 @@ def calibrate(
                 to_unit(box, b),
                 to_global_unit(draws_u.numpy(), box, b).reshape(-1, q),
                 settings,
+                ok=np.isfinite(y),
             )
             if boxed
             else 0.0

@@ -245,7 +245,7 @@ def assess(
     advice_for: AdviceFor = "python",
     searched_in_box: bool = False,
     expectation_bounds_maximum: bool = False,
-    mass_outside_box: float | None = 0.0,
+    mass_outside_box: float | None = None,
 ) -> Reliability:
     """Applies every rule and returns the verdict (arguments as in the rule functions).
 
@@ -273,7 +273,8 @@ def assess(
             log L sits far above that expectation (second review, session 27).
         mass_outside_box: with ``searched_in_box``, the lower estimate of the posterior
             mass outside the box (:func:`.box_mass.share_outside_box`), written to the
-            evidence; None when it could not be estimated (evidence null).
+            evidence; None when it could not be estimated (evidence null; also the
+            default, so a caller that forgets it never records "estimated, none").
     """
     q = len(names)
     u = np.asarray(draws_unit, dtype=np.float64).reshape(-1, q)
@@ -331,7 +332,8 @@ def assess(
         **failure_evidence,
     }
     if searched_in_box:
-        evidence["mass_outside_box"] = None if mass_outside_box is None else float(mass_outside_box)
+        share = None if mass_outside_box is None else float(mass_outside_box)
+        evidence["mass_outside_box"] = share if share is not None and math.isfinite(share) else None
     return Reliability(
         verdict="not_trusted" if reasons else "trusted",
         reasons=tuple(reasons),

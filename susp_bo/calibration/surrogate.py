@@ -333,8 +333,9 @@ class Surrogate:
 
     def loo_log_likelihood_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
         """E[log L̃] (n,) and sd of log L̃ (n,) (nats) at each training point, predicted by
-        the GP without that point (closed form, hyperparameters kept; as
-        :meth:`log_likelihood_uncertainty`)."""
+        the GP without that point (closed form, hyperparameters kept): the predictive
+        distribution of a new evaluation there, observation noise included (unlike
+        :meth:`log_likelihood_uncertainty`, which is of the noiseless log L)."""
         mean, var = self._loo_latent()
         return (
             self.warping.mean_log_likelihood(mean, var).numpy(),

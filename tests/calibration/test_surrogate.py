@@ -136,3 +136,39 @@ def test_auto_mean_keeps_the_better_leave_one_out_fit() -> None:
     auto = fit_surrogate(x, y, SurrogateSettings(mean="auto"), seed=0)
     assert isinstance(auto.model.mean_module, NegativeQuadraticMean)
     assert auto.loo_log_score() > scores["constant"]
+
+
+@pytest.mark.parametrize(
+    ("transform", "mean", "noise"),
+    [("none", "quadratic", "fixed"), ("log_deficit", "full_quadratic", "learned")],
+)
+def test_closed_form_leave_one_out_is_the_gp_refitted_without_each_point(
+    transform: str, mean: str, noise: str
+) -> None:
+    """``loo_log_likelihood_uncertainty`` against the exact GP posterior without point i
+    (same hyperparameters, noise included: the predictive distribution of a new
+    evaluation), mapped through the same warping (second review, session 28)."""
+    rng = np.random.default_rng(0)
+    x = rng.random((30, 2))
+    y = -0.5 * ((x[:, 0] - 0.6) / 0.1) ** 2 - 0.5 * ((x[:, 1] - 0.4) / 0.15) ** 2
+    y = y - 3.0 * np.sin(5.0 * x[:, 0]) + (rng.normal(0.0, 1.0, 30) if noise == "learned" else 0)
+    s = fit_surrogate(x, y, SurrogateSettings(transform=transform, mean=mean, noise=noise), 0)
+    mean_loo, sd_loo = s.loo_log_likelihood_uncertainty()
+    model, t = s.model, s.model.train_targets.detach()
+    with torch.no_grad():
+        k = model.covar_module(s.train_x).to_dense()
+        prior = model.mean_module(s.train_x)
+        nugget = model.likelihood.noise.detach().reshape(-1).expand(30)
+    means, variances = [], []
+    for i in range(30):
+        keep = np.arange(30) != i
+        solve = torch.linalg.solve(
+            k[keep][:, keep] + torch.diag(nugget[keep]),
+            torch.stack([t[keep] - prior[keep], k[i, keep]], 1),
+        )
+        means.append(float(prior[i] + k[i, keep] @ solve[:, 0]))
+        variances.append(float(k[i, i] - k[i, keep] @ solve[:, 1] + nugget[i]))
+    z = torch.tensor(means, dtype=torch.float64) * s._y_std + s._y_mean
+    var = torch.tensor(variances, dtype=torch.float64) * s._y_std**2
+    np.testing.assert_allclose(mean_loo, s.warping.mean_log_likelihood(z, var).numpy(), atol=1e-4)
+    np.testing.assert_allclose(sd_loo, (s.warping.slope(z) * var.sqrt()).numpy(), atol=1e-4)
