@@ -11,6 +11,10 @@ Cases are ``change:seed:runs:noise`` (change as in misspecified_model.py, plus
 
     python benchmarks/lack_of_fit_null.py none:0:3:0.01 none:0:2:0.01 none:0:20:0.5 \\
         conicity_0.105:0:3:0.01
+
+Measured as a rate (session 28, seeds 100–199 at ν = 2 and ν = 3, noise 0.01, 804 s):
+weighted F above 3 in 0 of 100 cases at either ν; ν = 2 mean 1.32, 99th percentile 2.80,
+largest 2.84; ν = 3 mean 1.13, largest 1.90.
 """
 
 from __future__ import annotations
