@@ -59,7 +59,10 @@ Session 28 (at f95c75f: the audits of sessions 24–25, the box rules, the weigh
 fit, the box-mass guard; 3 036 PyBullet runs, 1 642 s): all 20 ``trusted``, 36 of 40
 intervals hold the truth (misses |z| 2.1–2.6), alarm at campaign 6 (delay 0), no false
 alarm; every campaign used 74–80 of its 80 evaluations, warm or cold — an early stop now
-audits C_w with what is left (README, "Monitoring").
+audits C_w with what is left (README, "Monitoring"). With ``--warm-budget 34`` (at
+bcc2047, 1 430 PyBullet runs, 1 980 s beside a CI run and the demo): all 20 ``trusted``,
+warm campaigns 29–34 evaluations, the same alarm (campaign 6, delay 0), no false alarm,
+36 of 40 intervals hold the truth (the same 4 misses).
 """
 
 from __future__ import annotations
