@@ -99,7 +99,8 @@ def share_outside_box(
     if np.all(box_unit[0] <= 0.0) and np.all(box_unit[1] >= 1.0):
         return 0.0
     if ok is not None:
-        x_unit, y = x_unit[np.asarray(ok, dtype=bool)], np.asarray(y)[np.asarray(ok, dtype=bool)]
+        keep = np.asarray(ok, dtype=bool)
+        x_unit, y = x_unit[keep], np.asarray(y)[keep]
     if y.size < q + 2:  # too few measurements to fit anything over C_w
         _not_estimated(f"{y.size} successful evaluations")
         return None
