@@ -1,7 +1,9 @@
 """The reliability verdict's one plain sentence (:func:`.reliability.assess`), with advice.
 
 Trusted: why (the search converged, the held-out check agreed, the MCMC mixed — naming
-HMC when its draws were assessed). Not trusted: the first reason's message, the other
+HMC when its draws were assessed), and, after a search in a box whose left-out mass could
+not be estimated (``evidence.mass_outside_box`` null), that a broad, low mode outside the
+box is neither seen nor ruled out. Not trusted: the first reason's message, the other
 reasons' codes, and what to do about the first, in the caller's terms: a Python caller of
 :func:`~susp_bo.calibration.loop.calibrate` is told the settings to change
 (:data:`PYTHON_ADVICE`), a study (``susp-bo calibrate``, ``demo``, ``monitor``) the flags and
@@ -78,6 +80,19 @@ PYTHON_ADVICE = {
 """Advice for a caller of :func:`~susp_bo.calibration.loop.calibrate`: its settings."""
 
 
+_UNBOUNDED_BOX_MASS = (
+    "; but the posterior mass outside the search box could not be estimated "
+    "(mass_outside_box null), so a broad, low mode outside it is neither seen nor ruled out"
+)
+"""The trusted sentence's caveat when :func:`.box_mass.share_outside_box` returned None."""
+
+
+def _box_mass_unknown(evidence: Mapping[str, Any]) -> bool:
+    """A boxed search whose share outside the box was not estimated (the key is present
+    for boxed searches only, null when not estimated)."""
+    return "mass_outside_box" in evidence and evidence["mass_outside_box"] is None
+
+
 def sentence(
     reasons: Sequence[Mapping[str, Any]],
     evidence: Mapping[str, Any],
@@ -96,7 +111,8 @@ def sentence(
             f"the held-out check agreed at {evidence.get('check_points', 0)} posterior-edge "
             f"points and the MCMC mixed ({'HMC, ' if evidence.get('sampler') == 'hmc' else ''}"
             f"R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
-            f"ESS >= {evidence.get('ess_min', math.nan):.0f})."
+            f"ESS >= {evidence.get('ess_min', math.nan):.0f})"
+            f"{_UNBOUNDED_BOX_MASS if _box_mass_unknown(evidence) else ''}."
         )
     first = reasons[0]
     budget = int(evidence.get("budget", 0))

@@ -461,6 +461,7 @@ def build_report(
             "why": why,
             "n_simulations": result.get("n_simulations"),
             "n_evaluations": result.get("n_evaluations"),
+            "budget": ((result.get("reliability") or {}).get("evidence") or {}).get("budget"),
             "warm_start": result.get("warm_start"),
             "n_draws": int(samples.shape[0]),
         }

@@ -125,3 +125,17 @@ def test_forced_hmc_that_did_not_mix_is_told_to_use_auto_not_more_draws() -> Non
     line = sentence(reasons, {"budget": 200, "sampler": "hmc"}, "python")
     assert 'CalibrationSettings(mcmc_sampler="auto")' in line
     assert "mcmc_samples" in sentence(reasons, {"budget": 200, "sampler": "random_walk"}, "python")
+
+
+def test_a_trusted_sentence_says_when_the_mass_outside_its_box_is_unknown() -> None:
+    """Session 28: the box-mass rule is silent (null) on sharp posteriors — demo seed 4, 12
+    of 20 monitoring campaigns — and the trusted sentence did not say so."""
+    evidence = {"optimum_gap_nats": 0.01, "check_points": 8, "r_hat_max": 1.01, "ess_min": 900}
+    caveat = "the posterior mass outside the search box could not be estimated"
+    unknown = sentence((), {**evidence, "mass_outside_box": None}, "command_line")
+    assert unknown.startswith("Trusted: the search converged")
+    assert caveat in unknown and "neither seen nor ruled out" in unknown
+    assert unknown.endswith("ruled out.")
+    for known in ({**evidence, "mass_outside_box": 1e-30}, evidence):  # estimated; no box
+        text = sentence((), known, "command_line")
+        assert caveat not in text and text.endswith("ESS >= 900).")

@@ -237,6 +237,8 @@ def test_the_next_campaign_starts_from_the_previous_trusted_posterior(
     report = susp_bo.monitor(monitored["folder"], out, progress=False, figures=False, warm_budget=6)
     row = next(r for r in report["campaigns"] if r["id"] == C)
     assert row["warm_start"]["from_campaign"] == B and row["n_evaluations"] <= 6
+    budgets = {r["id"]: r["budget"] for r in report["campaigns"]}  # as each campaign ran
+    assert budgets[C] == 6 and budgets[A] == 8
     assert (
         json.loads((out / C / "result.json").read_text())["reliability"]["evidence"]["budget"] == 6
     )
