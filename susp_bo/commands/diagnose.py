@@ -465,29 +465,12 @@ def run_diagnose(args: argparse.Namespace) -> int:
             f"would say on this unfinished fit is under forced_diagnosis ({forced['verdict']}: "
             f"{len(forced['flagged'])} residual bands), not a model-discrepancy finding.",
         )
-    augmented_verdict = verdicts[-1] if verdicts else None
-    if (
-        report.verdict == "named"
-        and report.answer_model == "augmented"
-        and isinstance(augmented_verdict, dict)
-        and augmented_verdict.get("verdict") != "trusted"
-        and reliability.fit_finished
-    ):  # the effect is named; the recalibrated values are not an answer
-        reasons = augmented_verdict.get("reasons", [])
-        codes = ", ".join(str(r.get("code")) for r in reasons)
-        if len(reasons) == 1 and "lack_of_fit_ratio" in reasons[0]:
-            # the runs share a residual no change of the parameters removes (the Gauss–Newton
-            # steps ran): a finished fit that still misses the data, more budget is no remedy
-            document["sentence"] += (
-                " The augmented model's calibration is NOT trusted (below_expected_fit: "
-                f"{reasons[0].get('message', '')}): the named effect does not explain all of "
-                "the disagreement, and its parameter values are not an answer."
-            )
-        else:
-            document["sentence"] += (
-                f" The augmented model's calibration is NOT trusted ({codes or 'no verdict'}): "
-                "its parameter values are not an answer; diagnose again with a larger --budget."
-            )
+    document["sentence"] += augmented_model_note(
+        report.verdict,
+        report.answer_model,
+        verdicts[-1] if verdicts else None,
+        fit_finished=reliability.fit_finished,
+    )
     write_json(out / DOCUMENT_NAME, json_ready(document))
     forced_note = (
         ""
@@ -506,3 +489,44 @@ def run_diagnose(args: argparse.Namespace) -> int:
         )
     print(f"susp-bo diagnose: results in {out}", file=sys.stderr)
     return 0
+
+
+def augmented_model_note(
+    verdict: str, answer_model: str, augmented_verdict: object, *, fit_finished: bool
+) -> str:
+    """What the diagnosis sentence adds when the effect is named but the model recalibrated
+    with it is not ``trusted``: its parameter values are then no answer.
+
+    Args:
+        verdict: the workflow's verdict (``"named"``, ``"unexplained"``, …).
+        answer_model: which model's values answer (``"augmented"`` or ``"base"``).
+        augmented_verdict: the recalibrated model's ``reliability`` dict, or None.
+        fit_finished: the diagnosed calibration was trusted (not ``--force``).
+
+    Returns:
+        ``""`` when nothing is to be added, else a sentence that starts with a space. A
+        verdict refused by the lack of fit alone (the runs share a residual no change of
+        the parameters removes, after the Gauss–Newton steps: a finished fit that still
+        misses the data, so more budget is no remedy) says that the named effect does not
+        explain all of the disagreement; any other refusal asks for a larger ``--budget``.
+    """
+    if not (
+        verdict == "named"
+        and answer_model == "augmented"
+        and isinstance(augmented_verdict, dict)
+        and augmented_verdict.get("verdict") != "trusted"
+        and fit_finished
+    ):
+        return ""
+    reasons = augmented_verdict.get("reasons", []) or []
+    codes = ", ".join(str(r.get("code")) for r in reasons)
+    if len(reasons) == 1 and "lack_of_fit_ratio" in reasons[0]:
+        return (
+            " The augmented model's calibration is NOT trusted (below_expected_fit: "
+            f"{reasons[0].get('message', '')}): the named effect does not explain all of "
+            "the disagreement, and its parameter values are not an answer."
+        )
+    return (
+        f" The augmented model's calibration is NOT trusted ({codes or 'no verdict'}): "
+        "its parameter values are not an answer; diagnose again with a larger --budget."
+    )

@@ -133,3 +133,32 @@ def test_the_augmented_result_json_has_calibrates_layout() -> None:
     assert payload["warm_start"]["ranking_refit"] == [0.1, 0.2]
     assert payload["warm_start"]["base_map"] == [0.3]
     assert payload["nu"] == 3 and payload["seed"] == 3 and payload["data"] == "runs"
+
+
+def test_a_named_effect_whose_recalibration_still_lacks_fit_does_not_explain_all() -> None:
+    """The sentence after a named effect whose augmented model is not trusted: refused by
+    the lack of fit alone (a real reason from the rule), it says the effect does not
+    explain all of the disagreement and asks for no budget; any other refusal asks for
+    more budget; a trusted recalibration, an unexplained verdict, the base model's answer
+    or a forced run add nothing."""
+    from susp_bo.calibration.lack_of_fit import systematic_misfit
+    from susp_bo.commands.diagnose import augmented_model_note
+
+    misfit = systematic_misfit(5.2, 3)
+    assert misfit is not None
+    lacking = {"verdict": "not_trusted", "reasons": [misfit]}
+    note = augmented_model_note("named", "augmented", lacking, fit_finished=True)
+    assert "the named effect does not explain all of the disagreement" in note
+    assert "lack of fit F = 5.2" in note and "--budget" not in note
+    unconverged = {"verdict": "not_trusted", "reasons": [{"code": "not_converged"}, misfit]}
+    other = augmented_model_note("named", "augmented", unconverged, fit_finished=True)
+    assert "(not_converged, below_expected_fit)" in other and "larger --budget" in other
+    assert "does not explain all" not in other
+    for args in (
+        ("named", "augmented", {"verdict": "trusted", "reasons": []}, True),
+        ("unexplained", "augmented", lacking, True),
+        ("named", "base", lacking, True),
+        ("named", "augmented", lacking, False),
+        ("named", "augmented", None, True),
+    ):
+        assert augmented_model_note(*args[:3], fit_finished=args[3]) == ""
