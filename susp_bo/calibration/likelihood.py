@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.special import logsumexp
@@ -57,6 +58,11 @@ class OutputError:
 
     sigma: tuple[float, ...]
     correlation_length_hz: float | None = None
+
+    expectation_bounds_maximum: ClassVar[bool] = False
+    """σ_B is the scatter between runs on different tracks, not the residual's scale of
+    runs on their own tracks: log L at the truth sits far above the expectation, which
+    therefore says nothing of the maximum (second review, session 27)."""
 
     def __post_init__(self) -> None:
         sigma = tuple(float(s) for s in np.atleast_1d(np.asarray(self.sigma, dtype=np.float64)))

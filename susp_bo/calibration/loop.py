@@ -86,7 +86,6 @@ from susp_bo.calibration.loop_step import (
     torch_state,
 )
 from susp_bo.calibration.mode_jumps import modes_chains_stayed_in
-from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.posterior import check_names, summarize
 from susp_bo.calibration.reliability import (
     POOR_MIXING_R_HAT,
@@ -441,8 +440,10 @@ def calibrate(
         evaluated_ok=np.isfinite(y),
         searched_in_box=boxed,
         mass_outside_box=outside_share,
-        # the paired B's expectation is on the residual's own scale, so it bounds log L
-        expectation_bounds_maximum=isinstance(getattr(evaluate, "error", None), PairedOutputError),
+        # the output-error model says whether its expectation also bounds the maximum
+        expectation_bounds_maximum=bool(
+            getattr(getattr(evaluate, "error", None), "expectation_bounds_maximum", False)
+        ),
     )
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)
     result = CalibrationResult(

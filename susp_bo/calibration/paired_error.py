@@ -52,6 +52,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import ClassVar
 
 import numpy as np
 
@@ -89,6 +90,10 @@ class PairedOutputError:
     spectrum: SpectrumSettings
     model_error_sigma: tuple[float, ...] | None = None
     model: str = field(default="paired", init=False)
+
+    expectation_bounds_maximum: ClassVar[bool] = True
+    """log L expected at the truth is on the residual's own scale, so the maximum of log L
+    lies within a χ²_q spread of it (:func:`.reliability.plausible_max_log_likelihood`)."""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.noise_m_s2) and self.noise_m_s2 >= 0.0):

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from susp_bo.calibration.budget import budget_requirement
+from susp_bo.calibration.likelihood import OutputError
 from susp_bo.calibration.loop import BudgetTooSmallError, CalibrationSettings, calibrate
+from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.reliability import (
     Reliability,
     assess,
@@ -123,6 +125,10 @@ def test_a_predicted_maximum_beyond_what_b_allows_is_named_as_extrapolation() ->
     # the unpaired B's expectation is no ceiling (the truth's log L sits ≈ 28 sd above it):
     # an unfinished unpaired search is not told its surrogate extrapolates (second review)
     unpaired = assess(**arguments)
+    # calibrate takes the flag from its evaluator's output-error model (session 29: a
+    # declared capability, where an isinstance check on the paired class stood)
+    assert PairedOutputError.expectation_bounds_maximum is True
+    assert OutputError((0.1, 0.2)).expectation_bounds_maximum is False
     assert unpaired.codes[:2] == ("not_converged", "below_expected_fit")
     assert "extrapolates" not in unpaired.sentence and "plausible_max" not in unpaired.reasons[0]
     # the box-mass estimate is in the evidence of a boxed search: a share, or null when the
