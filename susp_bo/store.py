@@ -206,19 +206,32 @@ class EvaluationStore:
             :func:`susp_bo.store_fingerprint.study_fingerprint`); the store adds
             ``store_schema_version`` and ``package_version`` (major.minor) itself.
         code_version: version string written on every row.
+        create: False to open only a store that already holds a study (a resume, a
+            finished result read back): an absent or empty file, or one without the
+            fingerprint, is then refused instead of being made a new store (outside probe,
+            session 29: an emptied store took the fingerprint of other data, and the
+            result beside it was reused for those data).
 
     Raises:
         StoreMismatchError: the existing file was made for another study; the
             message names the key that differs and both values.
         StoreFileError: the file exists but is not a readable evaluation store (not
-            SQLite, damaged, or a database of other tables); the file is left as it was.
+            SQLite, damaged, a database of other tables, or evaluations without the
+            fingerprint that says whose they are), or, with ``create=False``, holds no
+            study; the file is left as it was.
     """
 
     def __init__(
-        self, path: str | Path, fingerprint: Mapping[str, str], code_version: str = __version__
+        self,
+        path: str | Path,
+        fingerprint: Mapping[str, str],
+        code_version: str = __version__,
+        *,
+        create: bool = True,
     ) -> None:
         self.path = Path(path)
         self.code_version = code_version
+        self._create = create
         if not isinstance(fingerprint, Mapping):
             raise TypeError(
                 f"fingerprint: {fingerprint!r} ({type(fingerprint).__name__}) is not allowed; "
@@ -227,6 +240,11 @@ class EvaluationStore:
         if self.path.is_dir():
             raise StoreFileError(
                 f"path: {self.path} is a folder; expected the store's .sqlite file"
+            )
+        if not create and (not self.path.is_file() or self.path.stat().st_size == 0):
+            raise StoreFileError(
+                f"{self.path}: {'empty' if self.path.is_file() else 'absent'}; expected the "
+                "evaluation store of the study (nothing in it can be checked or reused)"
             )
         self.fingerprint: dict[str, str] = {
             **{str(k): str(v) for k, v in fingerprint.items()},
@@ -263,11 +281,25 @@ class EvaluationStore:
                 raise StoreFileError(
                     f"{self.path}: not an evaluation store (tables {sorted(tables)}, no 'study')"
                 )
-            if not tables:
+            if not tables and self._create:
                 for statement in _SCHEMA:
                     self._db.execute(statement)
-            stored = dict(self._db.execute("SELECT key, value FROM study").fetchall())
+            stored = (
+                dict(self._db.execute("SELECT key, value FROM study").fetchall()) if tables else {}
+            )
             if not stored:
+                # made in one transaction with its schema, the fingerprint is missing only from
+                # a damaged or edited file: whose evaluations it holds cannot be told
+                held = (
+                    int(self._db.execute("SELECT COUNT(*) FROM evaluations").fetchone()[0])
+                    if ("evaluations" in tables)
+                    else 0
+                )
+                if held or not self._create:
+                    raise StoreFileError(
+                        f"{self.path}: no study fingerprint ({held} evaluation(s) of a study "
+                        "it cannot name), so nothing in it can be checked or reused"
+                    )
                 self._db.executemany(
                     "INSERT INTO study (key, value) VALUES (?, ?)", sorted(self.fingerprint.items())
                 )

@@ -129,6 +129,33 @@ def test_a_damaged_store_is_a_store_file_error_and_is_left_as_it_was(tmp_path: P
     assert path.read_bytes() == cut
 
 
+def test_a_store_that_names_no_study_is_never_taken_for_this_one(tmp_path: Path) -> None:
+    """Outside probe, session 29: an emptied store, or one whose fingerprint was deleted,
+    took the fingerprint of whatever study opened it next. Evaluations without a
+    fingerprint are refused always; an empty or absent file is refused where a store must
+    already exist (``create=False``: a resume, a finished result read back), untouched."""
+    path = tmp_path / "s.sqlite"
+    with EvaluationStore(path, FINGERPRINT) as store:
+        store.record_ok([1.0, 2.0], "run-01", np.zeros((2, 3)), seconds=1.0)
+    with EvaluationStore(path, FINGERPRINT, create=False) as store:  # a study's store: opens
+        assert store.count() == 1
+    with sqlite3.connect(path) as db:
+        db.execute("DELETE FROM study")
+    db.close()
+    for create in (True, False):
+        with pytest.raises(StoreFileError, match=r"no study fingerprint \(1 evaluation"):
+            EvaluationStore(path, FINGERPRINT, create=create)
+    empty, absent = tmp_path / "empty.sqlite", tmp_path / "absent.sqlite"
+    empty.write_bytes(b"")
+    with pytest.raises(StoreFileError, match=r"empty\.sqlite: empty; expected the evaluation"):
+        EvaluationStore(empty, FINGERPRINT, create=False)
+    with pytest.raises(StoreFileError, match=r"absent\.sqlite: absent"):
+        EvaluationStore(absent, FINGERPRINT, create=False)
+    assert empty.read_bytes() == b"" and not absent.exists()
+    with EvaluationStore(empty, FINGERPRINT) as store:  # a new study may start in it
+        assert store.count() == 0
+
+
 def test_store_uses_wal_and_is_readable_by_another_connection(tmp_path: Path) -> None:
     path = tmp_path / "s.sqlite"
     with EvaluationStore(path, FINGERPRINT) as store:

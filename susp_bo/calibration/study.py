@@ -244,6 +244,12 @@ def run_study(
     study = prepare_study(config, resume=resume)
     if resume:
         check_resume_budget(config)
+    elif (config.out / RESULT_NAME).exists():  # a finished result without its store
+        raise StudyError(
+            f"out: {config.out} already holds a result ({RESULT_NAME}) without its "
+            f"{STORE_NAME}; it is left as it was: choose another output folder, or move the "
+            "result away to calibrate into this one"
+        )
     out = config.out
     with ExitStack() as held:  # the folder lock: to the last file written
         with ExitStack() as stack:
@@ -260,7 +266,7 @@ def run_study(
                 ) from None
             try:  # before anything is written: a refused resume leaves the folder as it was
                 store = stack.enter_context(
-                    EvaluationStore(out / STORE_NAME, store_fingerprint(study))
+                    EvaluationStore(out / STORE_NAME, store_fingerprint(study), create=not resume)
                 )
             except StoreMismatchError as error:
                 raise store_mismatch(out, error) from None

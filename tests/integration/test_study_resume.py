@@ -191,6 +191,37 @@ def test_a_damaged_store_is_named_and_left_as_it_was(
     assert _snapshot(finished_copy, sqlite_aux=False) == before
 
 
+@pytest.mark.parametrize("damage", ["emptied", "fingerprint_deleted", "removed"])
+def test_a_result_whose_store_says_no_study_is_neither_resumed_nor_overwritten(
+    finished_copy: Path, calibrate_command, damage: str
+) -> None:
+    """Outside probe, session 29: a resume on an emptied store started again and rewrote the
+    result; on a store without its fingerprint it accepted other data and mixed two data
+    sets in one store; a plain run beside a result whose store was removed overwrote it."""
+    store = finished_copy / "evaluations.sqlite"
+    if damage == "emptied":
+        store.write_bytes(b"")
+    elif damage == "fingerprint_deleted":
+        db = sqlite3.connect(store)
+        with db:
+            db.execute("DELETE FROM study")
+        db.close()
+    else:
+        store.unlink()
+    before = _snapshot(finished_copy, sqlite_aux=False)
+    extra = [] if damage == "removed" else ["--resume"]
+    refused = calibrate_command(finished_copy / "study.toml", "--out", str(finished_copy), *extra)
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "Traceback" not in refused.stderr
+    expected = {
+        "emptied": f"{store}: empty",
+        "fingerprint_deleted": f"{store}: no study fingerprint",
+        "removed": "already holds a result (result.json) without its evaluations.sqlite",
+    }[damage]
+    assert expected in " ".join(refused.stderr.split()), refused.stderr[-2000:]
+    assert _snapshot(finished_copy, sqlite_aux=False) == before
+
+
 def test_an_unreachable_scheduler_leaves_no_results_folder(
     fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command
 ) -> None:

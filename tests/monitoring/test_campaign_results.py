@@ -90,6 +90,30 @@ def test_a_finished_campaign_without_its_store_cannot_be_checked_and_is_refused(
     assert _files(copy["out"]) == before
 
 
+@pytest.mark.parametrize("damage", ["emptied", "fingerprint_deleted"])
+def test_a_finished_campaign_whose_store_says_no_study_is_refused_on_other_runs(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str], damage: str
+) -> None:
+    """Outside probe, session 29: an emptied store (0 bytes) took the fingerprint of the
+    runs now in the campaign folder — other runs — and the old result was reported for
+    them (exit 0). A store without a fingerprint cannot be checked, like a missing one."""
+    store = copy["out"] / B / "evaluations.sqlite"
+    if damage == "emptied":
+        store.write_bytes(b"")
+    else:
+        db = sqlite3.connect(store)
+        with db:
+            db.execute("DELETE FROM study")
+        db.close()
+    _replace_runs(copy)
+    before = _files(copy["out"])
+    assert _monitor(copy) == 2
+    err = capsys.readouterr().err
+    assert str(store) in err and "not reused" in err and "Traceback" not in err
+    assert ("empty" if damage == "emptied" else "no study fingerprint") in err
+    assert _files(copy["out"]) == before  # the store, result and draws as they were
+
+
 def test_a_result_of_another_version_is_reused_only_on_the_same_runs(
     copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
