@@ -473,7 +473,7 @@ class EvaluationStore:
         ).fetchone()
         if row is None:
             return None
-        evaluation = _from_row(row)
+        evaluation = _from_row(row, self.path)
         if evaluation.failure_kind == "crash" and not include_crashes:
             return None
         return evaluation
@@ -486,7 +486,7 @@ class EvaluationStore:
         if status is not None:
             query, args = query + " WHERE status = ?", (status,)
         for row in self._db.execute(query + " ORDER BY id", args).fetchall():
-            yield _from_row(row)
+            yield _from_row(row, self.path)
 
     def count(self, status: str | None = None) -> int:
         """Number of recorded evaluations, optionally of one status (``"ok"``/``"failed"``)."""
@@ -535,16 +535,31 @@ def _check_status(status: str | None) -> None:
         raise ValueError(f"status: {status!r} is not allowed; expected None, 'ok' or 'failed'")
 
 
-def _from_row(row: tuple) -> Evaluation:
+def _from_row(row: tuple, path: Path) -> Evaluation:
+    """One stored row as an :class:`Evaluation`.
+
+    Raises:
+        StoreFileError: a row whose parameters or spectra cannot be decoded (a damaged or
+            hand-edited store: outside probe, session 29, a 1-byte spectra blob gave a
+            bare ``ValueError`` traceback), naming the store, the row and what is wrong.
+    """
     (key, params, track_id, status, kind, reason, blob, shape, loglik, seconds, attempts,
      code_version, created_at) = row  # fmt: skip
     spectra = None
-    if blob is not None:
-        rows, cols = (int(n) for n in shape.split(","))
-        spectra = np.frombuffer(blob, dtype="<f8").reshape(rows, cols).astype(np.float64)
+    try:
+        if blob is not None:
+            rows, cols = (int(n) for n in str(shape).split(","))
+            spectra = np.frombuffer(blob, dtype="<f8").reshape(rows, cols).astype(np.float64)
+        parameters = np.frombuffer(params, dtype="<f8").astype(np.float64)
+    except (TypeError, ValueError) as error:
+        raise StoreFileError(
+            f"{path}: the evaluation on track {track_id!r} (key {str(key)[:16]}…) is damaged "
+            f"({error}); the store is left as it was: restore it from a copy, or move it away "
+            "to compute the study afresh"
+        ) from None
     return Evaluation(
         key=key,
-        parameters=np.frombuffer(params, dtype="<f8").astype(np.float64),
+        parameters=parameters,
         track_id=track_id,
         status=status,
         spectra=spectra,

@@ -156,6 +156,26 @@ def test_a_store_that_names_no_study_is_never_taken_for_this_one(tmp_path: Path)
         assert store.count() == 0
 
 
+def test_a_damaged_row_is_named_not_a_traceback(tmp_path: Path) -> None:
+    """Outside probe, session 29: a spectra blob of one byte gave ``ValueError: buffer size
+    must be a multiple of element size`` from deep inside a resume."""
+    path = tmp_path / "s.sqlite"
+    with EvaluationStore(path, FINGERPRINT) as store:
+        store.record_ok([1.0, 2.0], "run-01", np.zeros((2, 3)), seconds=1.0)
+        store.record_ok([1.0, 3.0], "run-01", np.ones((2, 3)), seconds=1.0)
+    with sqlite3.connect(path) as db:
+        db.execute("UPDATE evaluations SET spectra = x'00' WHERE id = 1")
+    db.close()
+    with EvaluationStore(path, FINGERPRINT, create=False) as store:
+        damaged = r"s\.sqlite: the evaluation on track 'run-01' \(key [0-9a-f]+…\) is damaged"
+        with pytest.raises(StoreFileError, match=damaged):
+            store.lookup([1.0, 2.0], "run-01")
+        with pytest.raises(StoreFileError, match=damaged):
+            list(store.evaluations())
+        intact = store.lookup([1.0, 3.0], "run-01")  # the other rows still read
+        assert intact is not None and intact.spectra is not None and intact.spectra[0, 0] == 1.0
+
+
 def test_store_uses_wal_and_is_readable_by_another_connection(tmp_path: Path) -> None:
     path = tmp_path / "s.sqlite"
     with EvaluationStore(path, FINGERPRINT) as store:
