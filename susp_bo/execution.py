@@ -238,10 +238,22 @@ def scheduler_address_problem(address: str) -> str | None:
         return None if location else "no location after 'inproc://'"
     if scheme not in _PORT_SCHEMES:
         return f"unknown protocol {scheme!r} (expected one of {', '.join(_PORT_SCHEMES)}, inproc)"
-    host, colon, port = location.rpartition(":")
+    ipv6 = "an IPv6 host goes in brackets, [addr]:port (e.g. tcp://[::1]:8786)"
+    if location.startswith("["):  # Dask's IPv6 notation (outside probe, session 29: an
+        # unclosed bracket passed this check and Dask then timed out after 20 s)
+        host, bracket, tail = location[1:].partition("]")
+        if not bracket or "[" in host:
+            return f"the '[' before the host is not closed by ']': {ipv6}"
+        colon, port = tail[:1], tail[1:]
+        if tail and colon != ":":
+            return f"after ']' comes ':port': {ipv6}"
+    else:
+        host, colon, port = location.rpartition(":")
+        if ":" in host or "[" in host or "]" in host:
+            return ipv6
     if not colon or not port.isdigit() or not 0 < int(port) < 65536:
         return "no port number in 1–65535 after the host (expected host:port)"
-    if host in ("", "[]"):
+    if host == "":
         return "no host before the port"
     return None
 

@@ -28,6 +28,12 @@ def _positive(name: str, value: object) -> None:
         raise ValueError(f"{name}: {value!r} is not allowed; expected a finite number > 0")
 
 
+MAX_EVALUATIONS = 100_000
+"""Largest budget a study accepts: a GP on 10⁵ points needs 80 GB for its covariance
+matrix alone, so a larger budget (outside probe, session 29: 10¹² as ``initial_design``
+failed in the Sobol' allocation with a traceback) can only be a typo."""
+
+
 @dataclass(frozen=True)
 class BudgetConfig:
     """Simulation budget.
@@ -59,6 +65,12 @@ class BudgetConfig:
         _integer("budget.max_evaluations", self.max_evaluations, 2)
         _integer("budget.batch_size", self.batch_size, 1)
         _integer("budget.check_points", self.check_points, 0)
+        if self.max_evaluations > MAX_EVALUATIONS:
+            raise ValueError(
+                f"budget.max_evaluations: {self.max_evaluations} is not allowed; expected at "
+                f"most {MAX_EVALUATIONS} (the kriging surrogate's cost grows as the cube of "
+                "the evaluations; the paper's study used 450)"
+            )
         if self.max_evaluations < self.initial_design:
             raise ValueError(
                 f"budget.max_evaluations: {self.max_evaluations} is not allowed; expected >= "
@@ -162,6 +174,21 @@ class MCMCConfig:
                 "the split R-hat needs 4"
             )
             raise ValueError(f"{error} ({why})") from None
+        steps = self.chains * (self.warmup + self.draws)
+        if steps > MAX_CHAIN_STEPS:
+            raise ValueError(
+                f"mcmc.chains x (mcmc.warmup + mcmc.draws): {self.chains} x ({self.warmup} + "
+                f"{self.draws}) = {steps:.3g} chain steps is not allowed; expected at most "
+                f"{MAX_CHAIN_STEPS:.0e} (the defaults take {512 * 2500:.3g}; the kept draws "
+                "are held in memory, 8 bytes a parameter each)"
+            )
+
+
+MAX_CHAIN_STEPS = 10**8
+"""Largest ``chains x (warmup + draws)`` a study accepts (≈ 80x the defaults): beyond it
+the draws do not fit in memory or the sampler runs for hours — refused when the study file
+is read, before any simulation (outside probe, session 29: 10¹² chains failed with a
+MemoryError traceback after every simulation had run)."""
 
 
 @dataclass(frozen=True)

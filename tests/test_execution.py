@@ -191,6 +191,12 @@ def test_make_executor_rejects_bad_arguments() -> None:
         ("tcp://:8786", "no host"),
         ("foo://h:1", "unknown protocol 'foo'"),
         ("inproc://", "no location"),
+        # session 29's probe: an unclosed bracket passed, and Dask timed out after 20 s
+        ("tcp://[::1", "'[' before the host is not closed"),
+        ("tcp://[::1]8786", "after ']' comes ':port'"),
+        ("tcp://::1:8786", "an IPv6 host goes in brackets"),
+        ("tcp://[]:8786", "no host"),
+        ("tcp://[::1]", "no port number"),
     ],
 )
 def test_scheduler_address_grammar(address: str, problem: str | None) -> None:

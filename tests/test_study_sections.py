@@ -42,6 +42,10 @@ def test_sections_by_table_name_in_file_order() -> None:
         (lambda: MCMCConfig(draws=7, sampler="hmc"), r"mcmc\.draws: 7 .* >= 8"),
         (lambda: MCMCConfig(draws=3, sampler="random_walk"), r"mcmc\.draws: 3 .* >= 4"),
         (lambda: MCMCConfig(draws=200.0), r"mcmc\.draws: 200\.0 is not allowed"),
+        # session 29's probe: sizes that fail with a MemoryError after every simulation
+        (lambda: MCMCConfig(chains=10**12), r"mcmc\.chains x .* = 2\.5e\+15 chain steps .* 1e\+08"),
+        (lambda: MCMCConfig(chains=40_001), r"40001 x \(500 \+ 2000\) = 1e\+08 chain"),
+        (lambda: BudgetConfig(max_evaluations=10**12), r"max_evaluations: 1000000000000 .* 100000"),
         (lambda: SearchConfig(kernel="rbf"), r'"matern", "additive_pairs", "auto"'),
         (lambda: OutputErrorConfig(model="mixture"), r"output_error\.model"),
     ],
@@ -49,6 +53,11 @@ def test_sections_by_table_name_in_file_order() -> None:
 def test_a_bad_value_names_the_field_the_value_and_what_is_allowed(make, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         make()
+
+
+def test_the_largest_sizes_a_study_accepts_are_accepted() -> None:
+    assert MCMCConfig(chains=40_000).chains == 40_000  # 10⁸ chain steps exactly
+    assert BudgetConfig(max_evaluations=100_000).max_evaluations == 100_000
 
 
 def test_paired_config_refuses_a_correlation_length() -> None:
