@@ -55,6 +55,7 @@ from susp_bo.data.measured import (
     MeasuredRun,
     nan_runs,
 )
+from susp_bo.data.run_validation import irregularity_problems
 from susp_bo.rig.design import DESIGN_COMPONENTS, TrackDesign
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
 
@@ -152,29 +153,14 @@ def _build(path: Path, **fields: Any) -> MeasuredRun:
         raise MeasuredDataError(f"{path}: {error}") from None
 
 
-_IRREGULARITY_LIMIT = {"vertical_m": 0.1, "alignment_m": 0.1, "gauge_m": 0.1,
-                        "cross_level_rad": 0.2}  # fmt: skip
-"""Largest deviation from the median a track irregularity may have (m, rad): ten times
-the worst track still run on, so that a column written in millimetres (or a cross
-level in mrad) is refused, not read as metres of irregularity."""
-
-
 def _geometry(path: Path, **fields: Any) -> TrackGeometry:
     try:
         geometry = TrackGeometry(**fields)
     except ValueError as error:
         raise MeasuredDataError(f"{path}: {error}") from None
-    for name, limit in _IRREGULARITY_LIMIT.items():
-        values = getattr(geometry, name)
-        deviation = float(np.max(np.abs(values - np.median(values))))
-        if deviation > limit:
-            unit = "rad" if name.endswith("_rad") else "m"
-            raise MeasuredDataError(
-                f"{path}: {name} deviates up to {deviation:.4g} {unit} from its median; "
-                f"track irregularities lie within ±{limit:g} {unit} and the unit is {unit}: "
-                f"was it written in {'mrad' if unit == 'rad' else 'mm'}? (the line's curves "
-                "and cant go in the design columns, not in the irregularities)"
-            )
+    problems = irregularity_problems(geometry)
+    if problems:
+        raise MeasuredDataError(f"{path}: {problems[0]}")
     return geometry
 
 

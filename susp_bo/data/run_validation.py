@@ -3,14 +3,16 @@
 Checks (each problem named, with the numbers): the rig's channels are present, in
 m/s², without NaN runs; the sampling rate and the record length suit the rig's band
 and Welch segment; the speed record covers the accelerations; the track geometry (and
-the design, when the run has one) covers the distance travelled plus the axle span.
-Run before any simulation by the study (:mod:`susp_bo.calibration.study_preparation`)
-and by ``susp-bo import``.
+the design, when the run has one) covers the distance travelled plus the axle span; the
+irregularities are in metres (:func:`irregularity_problems`). Run before any simulation
+by the study (:mod:`susp_bo.calibration.study_preparation`) and by ``susp-bo import``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+
+import numpy as np
 
 from susp_bo.data.measured import (
     MeasuredDataError,
@@ -20,6 +22,35 @@ from susp_bo.data.measured import (
     unit_problems,
 )
 from susp_bo.rig.spectra import SpectrumSettings
+from susp_bo.rig.track import TrackGeometry
+
+IRREGULARITY_LIMIT = {"vertical_m": 0.1, "alignment_m": 0.1, "gauge_m": 0.1,
+                      "cross_level_rad": 0.2}  # fmt: skip
+"""Largest deviation from the median a track irregularity may have (m, rad): ten times
+the worst track still run on, so that a column written in millimetres (or a cross
+level in mrad) is refused, not read as metres of irregularity."""
+
+
+def irregularity_problems(geometry: TrackGeometry) -> list[str]:
+    """Irregularities beyond :data:`IRREGULARITY_LIMIT`: a column in mm (or mrad), not m.
+
+    Checked on import (``susp-bo import``) and on every run a study loads (outside probe,
+    session 29: an HDF5 run rewritten in mm passed, every design simulation ran, and then
+    "every log L evaluation failed" named neither the file nor the cause).
+    """
+    problems = []
+    for name, limit in IRREGULARITY_LIMIT.items():
+        values = np.asarray(getattr(geometry, name), dtype=np.float64)
+        deviation = float(np.max(np.abs(values - np.median(values))))
+        if not deviation <= limit:  # NaN too
+            unit = "rad" if name.endswith("_rad") else "m"
+            problems.append(
+                f"{name} deviates up to {deviation:.4g} {unit} from its median; track "
+                f"irregularities lie within ±{limit:g} {unit} and the unit is {unit}: was it "
+                f"written in {'mrad' if unit == 'rad' else 'mm'}? (the line's curves and cant "
+                "go in the design columns, not in the irregularities)"
+            )
+    return problems
 
 
 def validate_run(
@@ -55,6 +86,7 @@ def validate_run(
     if missing:
         problems.append(f"missing channel(s) {missing}; the run has {list(run.channels)}")
     problems += unit_problems(run, wanted) + nan_problems(run, wanted)
+    problems += irregularity_problems(run.geometry)
     if settings is not None:
         try:
             settings.check_sample_rate(run.sample_rate_hz, run.duration_s)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -55,3 +57,19 @@ def test_validate_record_and_speed_lengths(small_run: MeasuredRun) -> None:
     )
     with pytest.raises(MeasuredDataError, match=r"speed record too short: it covers 0 … 2 s"):
         validate_run(short_speed)
+
+
+def test_track_irregularities_written_in_mm_are_named(small_run: MeasuredRun) -> None:
+    """Outside probe, session 29: an HDF5 run whose vertical profile was in mm passed, every
+    design simulation ran, and then "every log L evaluation failed" named no file."""
+    geometry = small_run.geometry
+    in_mm = dataclasses.replace(
+        geometry, vertical_m=1000.0 * (np.asarray(geometry.vertical_m) + 0.05)
+    )
+    assert float(np.max(np.abs(np.asarray(in_mm.vertical_m)))) > 0.1  # no longer plausible m
+    run = dataclasses.replace(small_run, geometry=in_mm)
+    with pytest.raises(MeasuredDataError, match=r"r\.h5: vertical_m deviates up to .* m from"):
+        validate_run(run, source="r.h5")
+    with pytest.raises(MeasuredDataError, match=r"was it written in mm\?"):
+        validate_run(run)
+    validate_run(small_run)  # the run in metres passes
