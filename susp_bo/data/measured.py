@@ -501,6 +501,21 @@ def load_runs(
     directory = Path(folder)
     if not directory.is_dir():
         raise MeasuredDataError(f"{directory}: not a folder of measured runs")
+    # named like a run but not a readable file (a folder, a broken link): refused, not
+    # skipped (outside probe, session 29: the study then said "needs 2 runs (found 1)")
+    odd = sorted(p for p in directory.iterdir() if p.suffix in RUN_SUFFIXES and not p.is_file())
+    if odd:
+        what = (
+            "a folder"
+            if odd[0].is_dir()
+            else "a link to nothing"
+            if odd[0].is_symlink()
+            else ("not a regular file")
+        )
+        raise MeasuredDataError(
+            f"{odd[0]}: named like a measured run but {what}; expected an HDF5 run file "
+            "(move it out of the data folder, or restore the file)"
+        )
     paths = run_paths(directory)
     if not paths:
         raise MeasuredDataError(f"{directory}: holds no measured runs (*.h5, *.hdf5)")

@@ -198,6 +198,25 @@ def test_save_run_refuses_a_folder_and_a_suffix_load_runs_skips(
     assert list(tmp_path.iterdir()) == []  # nothing written, no temporary left
 
 
+def test_an_entry_named_like_a_run_that_is_no_file_is_named_not_skipped(
+    small_run: MeasuredRun, tmp_path: Path
+) -> None:
+    """Outside probe, session 29: a folder or a broken link named run_000.h5 was skipped,
+    and the study said it "needs at least 2 measured runs (found 1)"."""
+    save_run(small_run, tmp_path / "run_001.h5")
+    (tmp_path / "run_000.h5").mkdir()
+    with pytest.raises(
+        MeasuredDataError, match=r"run_000\.h5: named like a measured run but a folder"
+    ):
+        load_runs(tmp_path)
+    (tmp_path / "run_000.h5").rmdir()
+    (tmp_path / "run_000.h5").symlink_to(tmp_path / "gone.h5")
+    with pytest.raises(MeasuredDataError, match=r"run_000\.h5: .* but a link to nothing"):
+        load_runs(tmp_path)
+    (tmp_path / "run_000.h5").unlink()
+    assert len(load_runs(tmp_path)) == 1
+
+
 def test_load_runs_refuses_a_str_or_empty_channel_list(
     small_run: MeasuredRun, tmp_path: Path
 ) -> None:
