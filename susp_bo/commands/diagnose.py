@@ -334,7 +334,7 @@ def run_diagnose(args: argparse.Namespace) -> int:
         )
     from susp_bo.calibration.likelihood import OutputError, estimate_output_error
     from susp_bo.calibration.study_inputs import StudyError
-    from susp_bo.calibration.study_preparation import prepare_study
+    from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study
     from susp_bo.discrepancy.figures import write_figures
     from susp_bo.discrepancy.problem import (
         DiagnosisProblem,
@@ -385,6 +385,13 @@ def run_diagnose(args: argparse.Namespace) -> int:
         write_json(out / DOCUMENT_NAME, json_ready(document))
         print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
         return 0
+    store = result_dir / STORE_NAME
+    if not store.is_file():  # prepare_study's "--resume" wording is calibrate's, not ours
+        raise UsageError(
+            f"RESULT_DIR: {store} does not exist; diagnose reads the study's simulations from "
+            "its evaluation store: give the results folder of a susp-bo calibrate run, with its "
+            "evaluations.sqlite (nothing was computed)"
+        )
     try:
         study = prepare_study(config, resume=True)
         simulator = make_simulator(kind)

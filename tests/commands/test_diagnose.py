@@ -71,6 +71,19 @@ def test_only_the_exact_trusted_verdict_counts(tmp_path: Path, verdict, capsys) 
     assert document["verdict"] == "calibration_not_trusted"
 
 
+def test_a_trusted_result_without_its_store_names_the_store_not_a_resume(
+    tmp_path: Path, capsys
+) -> None:
+    """Outside probe, session 29: diagnose said "--resume: … nothing to resume … run
+    without --resume", calibrate's wording for a flag diagnose does not have."""
+    folder = _result_dir(tmp_path, {"reliability": {"verdict": "trusted", "reasons": []}})
+    assert main(["diagnose", str(folder), "--out", str(tmp_path / "o")]) == 2
+    error = capsys.readouterr().err
+    assert f"RESULT_DIR: {folder / 'evaluations.sqlite'} does not exist" in error
+    assert "--resume" not in error and "Traceback" not in error
+    assert not (tmp_path / "o").exists()
+
+
 def test_an_empty_result_dir_is_refused_as_empty(tmp_path: Path, capsys, monkeypatch) -> None:
     monkeypatch.chdir(_result_dir(tmp_path, {}))  # "" must not mean the current folder
     assert main(["diagnose", "", "--out", str(tmp_path / "o")]) == 2
