@@ -36,3 +36,28 @@ def check_output_folder(path: str | Path, label: str = "--out") -> Path:
                 )
             break
     return folder
+
+
+def check_output_files(folder: str | Path, names: tuple[str, ...], label: str = "--out") -> None:
+    """Refuse, before any work, an output file name that a folder (or other non-file) holds.
+
+    Outside probe, session 29: ``result.json`` or a figure made a folder was found only when
+    written, after the whole calibration (``[Errno 21] Is a directory``); ``monitor.json``
+    after every campaign.
+
+    Args:
+        folder: the output folder (it may not exist yet: then nothing blocks).
+        names: the file names the command will write there.
+        label: the flag or config key that named the folder, for the message.
+
+    Raises:
+        ValueError: naming the first blocked path and what to do.
+    """
+    for name in names:
+        path = Path(folder) / name
+        if path.exists() and not path.is_file():
+            what = "a folder" if path.is_dir() else "not a regular file"
+            raise ValueError(
+                f"{label}: {path} is {what}, where the results file {name} goes; move it away "
+                "(nothing was computed)"
+            )

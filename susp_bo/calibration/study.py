@@ -74,6 +74,7 @@ from susp_bo.output_folder import (
     LOG_NAME,
     RESULT_NAME,
     SAMPLES_NAME,
+    check_output_files,
 )
 from susp_bo.output_lock import OutputFolderBusy, hold_output_folder, refuse_if_busy
 from susp_bo.rig.spec import RigSpec
@@ -242,6 +243,12 @@ def run_study(
     except OutputFolderBusy as error:
         raise StudyError(str(error)) from None
     study = prepare_study(config, resume=resume)
+    try:
+        check_output_files(
+            config.out, (RESULT_NAME, SAMPLES_NAME, CONFIG_NAME, LOG_NAME, *FIGURE_NAMES), "out"
+        )
+    except ValueError as error:
+        raise StudyError(str(error)) from None
     if resume:
         check_resume_budget(config)
     elif (config.out / RESULT_NAME).exists():  # a finished result without its store

@@ -67,6 +67,7 @@ from susp_bo.monitoring.campaign_results import (
 )
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
 from susp_bo.monitoring.warm_start import plan_warm_start
+from susp_bo.output_folder import check_output_files
 from susp_bo.output_lock import OutputFolderBusy, refuse_if_busy
 from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import load_rig_spec
@@ -327,6 +328,11 @@ def monitor(
         if problem is not None:
             raise MonitorError(problem)
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
+    try:  # monitor.json or a trend figure blocked by a folder: said now, not after every campaign
+        label = "--out" if argument_names["budget"].startswith("--") else "out"
+        check_output_files(out, (MONITOR_NAME, *(f"trend_{n}.png" for n in names)), label)
+    except ValueError as error:
+        raise MonitorError(str(error)) from None
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
     for campaign in campaigns:  # every input checked before the first simulation
         try:  # a campaign folder another process writes into: said now, not hours later

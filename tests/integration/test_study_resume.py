@@ -234,6 +234,23 @@ def test_an_unreachable_scheduler_leaves_no_results_folder(
     assert not out.exists()
 
 
+@pytest.mark.parametrize("blocked", ["result.json", "fig1_parameters.png"])
+def test_a_results_file_blocked_by_a_folder_is_named_before_any_simulation(
+    fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command, blocked: str
+) -> None:
+    """Outside probe, session 29: found only when written, after the whole calibration."""
+    out = tmp_path / "out"
+    (out / blocked).mkdir(parents=True)
+    config = study_writer(tmp_path, fast_rig, fast_data, out)
+    refused = calibrate_command(config)
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert f"out: {out / blocked} is a folder, where the results file {blocked} goes" in (
+        " ".join(refused.stderr.split())
+    )
+    assert "Traceback" not in refused.stderr
+    assert sorted(p.name for p in out.iterdir()) == [blocked]  # no store, nothing run
+
+
 def test_an_out_that_cannot_be_created_is_named(
     fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command
 ) -> None:

@@ -114,6 +114,19 @@ def test_a_finished_campaign_whose_store_says_no_study_is_refused_on_other_runs(
     assert _files(copy["out"]) == before  # the store, result and draws as they were
 
 
+def test_a_monitor_json_blocked_by_a_folder_is_named_before_any_campaign(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Outside probe, session 29: found only when written, after every campaign."""
+    shutil.rmtree(copy["out"] / B)  # a campaign still to calibrate
+    (copy["out"] / "monitor.json").unlink()
+    (copy["out"] / "monitor.json").mkdir()
+    assert _monitor(copy) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"--out: {copy['out'] / 'monitor.json'} is a folder, where the results file" in err
+    assert not (copy["out"] / B).exists()  # refused before the campaign ran
+
+
 def test_a_result_of_another_version_is_reused_only_on_the_same_runs(
     copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
