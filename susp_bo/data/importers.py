@@ -141,7 +141,8 @@ def _check_nan(path: Path, run: MeasuredRun, allow_nan: bool) -> MeasuredRun:
             if runs:
                 raise MeasuredDataError(
                     f"{path}: channel {name!r} has NaN runs ({len(runs)} run(s), "
-                    f"{sum(r[1] for r in runs)} samples); pass allow_nan=True to keep them"
+                    f"{sum(r[1] for r in runs)} samples); a study cannot use them: cut the run "
+                    "at the gaps or fill them (from Python, allow_nan=True keeps them)"
                 )
     return run
 

@@ -371,7 +371,8 @@ def unit_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
         if c in channels and u != SI_ACCELERATION
     ]
     return [
-        f"unit mismatch: {', '.join(wrong)}; expected m/s^2 (MeasuredRun.to_si converts)"
+        f"unit mismatch: {', '.join(wrong)}; expected m/s^2 (convert the channel to m/s^2 "
+        "before importing; from Python, MeasuredRun.to_si converts)"
     ] * bool(wrong)
 
 
