@@ -264,7 +264,27 @@ class EvaluationStore:
             self._db.close()
             raise
 
+    def _foreign_tables(self) -> set[str]:
+        """Tables of an existing file that is not an evaluation store, read without writing
+        (the WAL switch below rewrites the header: second review, session 29)."""
+        if not self.path.is_file() or self.path.stat().st_size == 0:
+            return set()
+        try:
+            db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True)
+            try:
+                tables = {r[0] for r in db.execute("SELECT name FROM sqlite_master")}
+            finally:
+                db.close()
+        except sqlite3.DatabaseError:
+            return set()  # not SQLite at all: the WAL switch below refuses it, unchanged
+        return tables if tables and "study" not in tables else set()
+
     def _open(self) -> None:
+        foreign = self._foreign_tables()
+        if foreign:
+            raise StoreFileError(
+                f"{self.path}: not an evaluation store (tables {sorted(foreign)}, no 'study')"
+            )
         try:
             mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
         except sqlite3.DatabaseError as error:

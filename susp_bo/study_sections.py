@@ -178,12 +178,13 @@ class MCMCConfig:
         if steps > MAX_CHAIN_STEPS:
             raise ValueError(
                 f"mcmc.chains x (mcmc.warmup + mcmc.draws): {self.chains} x ({self.warmup} + "
-                f"{self.draws}) = {steps:.3g} chain steps is not allowed; expected at most "
-                f"{MAX_CHAIN_STEPS:.0e} (the defaults take {512 * 2500:.3g}; the kept draws "
-                "are held in memory, 8 bytes a parameter each)"
+                f"{self.draws}) = {steps:,} chain steps is not allowed; expected at most "
+                f"{MAX_CHAIN_STEPS:,} (the defaults take {_DEFAULT_CHAIN_STEPS:,}; the kept "
+                "draws are held in memory, 8 bytes a parameter each)"
             )
 
 
+_DEFAULT_CHAIN_STEPS = MCMCConfig.chains * (MCMCConfig.warmup + MCMCConfig.draws)
 MAX_CHAIN_STEPS = 10**8
 """Largest ``chains x (warmup + draws)`` a study accepts (≈ 80x the defaults): beyond it
 the draws do not fit in memory or the sampler runs for hours — refused when the study file

@@ -111,8 +111,12 @@ def test_files_that_are_not_stores_are_refused(tmp_path: Path) -> None:
     other = tmp_path / "other.sqlite"
     with sqlite3.connect(other) as db:
         db.execute("CREATE TABLE wheels (diameter REAL)")
+    db.close()
+    before = other.read_bytes()
     with pytest.raises(StoreFileError, match=r"not an evaluation store \(tables \['wheels'\]"):
         EvaluationStore(other, FINGERPRINT)
+    assert other.read_bytes() == before  # refused read-only: not switched to WAL (review)
+    assert text.read_bytes() == b"this is not a database, it is a note about dampers\n" * 20
 
 
 def test_a_damaged_store_is_a_store_file_error_and_is_left_as_it_was(tmp_path: Path) -> None:

@@ -60,7 +60,7 @@ from susp_bo.calibration.study_inputs import StudyError, store_mismatch
 from susp_bo.calibration.study_preparation import (
     STORE_NAME,
     PreparedStudy,
-    check_resume_budget,
+    check_results_folder,
     prepare_study,
     store_fingerprint,
 )
@@ -74,7 +74,6 @@ from susp_bo.output_folder import (
     LOG_NAME,
     RESULT_NAME,
     SAMPLES_NAME,
-    check_output_files,
 )
 from susp_bo.output_lock import OutputFolderBusy, hold_output_folder, refuse_if_busy
 from susp_bo.rig.spec import RigSpec
@@ -243,21 +242,11 @@ def run_study(
     except OutputFolderBusy as error:
         raise StudyError(str(error)) from None
     study = prepare_study(config, resume=resume)
-    try:
-        check_output_files(
-            config.out, (RESULT_NAME, SAMPLES_NAME, CONFIG_NAME, LOG_NAME, *FIGURE_NAMES), "out"
-        )
-    except ValueError as error:
-        raise StudyError(str(error)) from None
-    if resume:
-        check_resume_budget(config)
-    elif (config.out / RESULT_NAME).exists():  # a finished result without its store
-        raise StudyError(
-            f"out: {config.out} already holds a result ({RESULT_NAME}) without its "
-            f"{STORE_NAME}; it is left as it was: choose another output folder, or move the "
-            "result away to calibrate into this one"
-        )
+    check_results_folder(config, resume)
     out = config.out
+    # a store without its study (emptied, or killed while being made) is started afresh
+    # only when no result lies beside it that it would then seem to vouch for
+    create = not resume or not any((out / n).exists() for n in (RESULT_NAME, SAMPLES_NAME))
     with ExitStack() as held:  # the folder lock: to the last file written
         with ExitStack() as stack:
             # the executor first: a scheduler that cannot be reached leaves the folder untouched
@@ -273,7 +262,7 @@ def run_study(
                 ) from None
             try:  # before anything is written: a refused resume leaves the folder as it was
                 store = stack.enter_context(
-                    EvaluationStore(out / STORE_NAME, store_fingerprint(study), create=not resume)
+                    EvaluationStore(out / STORE_NAME, store_fingerprint(study), create=create)
                 )
             except StoreMismatchError as error:
                 raise store_mismatch(out, error) from None

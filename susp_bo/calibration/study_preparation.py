@@ -34,7 +34,15 @@ from susp_bo.calibration.study_inputs import (
 )
 from susp_bo.data.measured import MeasuredRun, load_runs
 from susp_bo.data.run_validation import validate_run
-from susp_bo.output_folder import CONFIG_NAME, RESULT_NAME, check_output_folder
+from susp_bo.output_folder import (
+    CONFIG_NAME,
+    FIGURE_NAMES,
+    LOG_NAME,
+    RESULT_NAME,
+    SAMPLES_NAME,
+    check_output_files,
+    check_output_folder,
+)
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.store_fingerprint import study_fingerprint
@@ -161,6 +169,34 @@ def check_resume_budget(config: StudyConfig) -> None:
             f"evaluations of the finished result in {config.out / RESULT_NAME}; a resume only "
             f"extends a study: give {done} or more ({same}), or calibrate into another output "
             "folder to see what a smaller budget gives"
+        )
+
+
+def check_results_folder(config: StudyConfig, resume: bool) -> None:
+    """Refuse, before any simulation, a results folder the study would spoil.
+
+    A results file name held by a folder (found only when written, after the whole
+    calibration: outside probe, session 29); a plain run beside a finished ``result.json``
+    whose store is gone (it was overwritten); a resume below the finished result's
+    evaluations (:func:`check_resume_budget`). Called by ``run_study`` and, for every
+    campaign still to calibrate, by ``monitor`` before its first campaign runs.
+
+    Raises:
+        StudyError: naming the path and what to do; nothing is changed.
+    """
+    try:
+        check_output_files(
+            config.out, (RESULT_NAME, SAMPLES_NAME, CONFIG_NAME, LOG_NAME, *FIGURE_NAMES), "out"
+        )
+    except ValueError as error:
+        raise StudyError(str(error)) from None
+    if resume:
+        check_resume_budget(config)
+    elif (config.out / RESULT_NAME).exists():  # a finished result without its store
+        raise StudyError(
+            f"out: {config.out} already holds a result ({RESULT_NAME}) without its "
+            f"{STORE_NAME}; it is left as it was: choose another output folder, or move the "
+            "result away to calibrate into this one"
         )
 
 

@@ -372,7 +372,7 @@ def unit_problems(run: MeasuredRun, channels: Sequence[str]) -> list[str]:
     ]
     return [
         f"unit mismatch: {', '.join(wrong)}; expected m/s^2 (convert the channel to m/s^2 "
-        "before importing; from Python, MeasuredRun.to_si converts)"
+        "and import the run again; from Python, MeasuredRun.to_si converts)"
     ] * bool(wrong)
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.calibration.budget import budget_message, budget_requirement, design_for_budget
-from susp_bo.calibration.study_preparation import STORE_NAME, prepare_study
+from susp_bo.calibration.study_preparation import STORE_NAME, check_results_folder, prepare_study
 from susp_bo.monitoring.campaign_results import check_campaign_store, read_finished
 from susp_bo.monitoring.campaigns import Campaign
 from susp_bo.study_config import StudyConfig
@@ -115,6 +115,8 @@ def check_campaign(
     study = prepare_study(config, resume=(config.out / STORE_NAME).exists())
     if state == "finished":  # readable, of these parameters, in the units the rig gives now
         read_finished(config.out, names, study.units)
+    else:  # what run_study would refuse on this campaign's turn: said before the first runs
+        check_results_folder(config, resume=(config.out / STORE_NAME).exists())
     if state != "new":
         check_campaign_store(study, finished=state == "finished", campaign_folder=campaign.folder)
     return study.bounds

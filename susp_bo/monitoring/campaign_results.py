@@ -204,7 +204,7 @@ def check_campaign_store(study: PreparedStudy, *, finished: bool, campaign_folde
             f"{STORE_NAME} back"
         )
     try:
-        EvaluationStore(store, store_fingerprint(study), create=False).close()
+        EvaluationStore(store, store_fingerprint(study), create=not finished).close()
     except StoreFileError as error:
         raise CampaignResultError(
             f"{error}, so its {what} is not reused. Nothing was changed: move {store} away "

@@ -330,7 +330,8 @@ def monitor(
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
     try:  # monitor.json or a trend figure blocked by a folder: said now, not after every campaign
         label = "--out" if argument_names["budget"].startswith("--") else "out"
-        check_output_files(out, (MONITOR_NAME, *(f"trend_{n}.png" for n in names)), label)
+        trends = tuple(f"trend_{n}.png" for n in names) if figures else ()
+        check_output_files(out, (MONITOR_NAME, *trends), label)
     except ValueError as error:
         raise MonitorError(str(error)) from None
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate

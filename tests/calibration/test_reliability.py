@@ -443,3 +443,37 @@ def test_posterior_mass_where_every_simulation_failed_is_not_trusted() -> None:
     assert rel is not None and not rel.trusted and "failed_region" in rel.codes
     assert rel.evidence["draws_near_failed"] > 0.05
     assert rel.evidence["failed_evaluations"] == int(np.sum(~np.isfinite(result.y)))
+
+
+def test_calibrate_takes_the_maximum_bound_from_its_evaluators_output_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Second review, session 29: only the models' attribute was tested, not that calibrate
+    passes it on. The real ``assess`` runs; the wrapper only records what it was given."""
+    import susp_bo.calibration.loop as loop
+    from susp_bo.rig.spectra import SpectrumSettings
+
+    given: list[bool] = []
+    real = loop.assess
+
+    def recording(*args, **kwargs):
+        given.append(kwargs["expectation_bounds_maximum"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loop, "assess", recording)
+
+    class Evaluator:
+        def __init__(self, error: object) -> None:
+            self.error = error
+
+        def __call__(self, w: np.ndarray) -> np.ndarray:
+            return bowl(w)
+
+    spectrum = SpectrumSettings(f_min_hz=1.0, f_max_hz=20.0, n_frequencies=8, segment_s=2.0)
+    paired = PairedOutputError(0.01, 100.0, (1000,), spectrum)
+    settings = replace(SETTINGS, max_evaluations=15, allow_small_budget=True, mcmc_chains=8,
+                       mcmc_samples=100)  # fmt: skip
+    for error in (paired, OutputError((0.1,)), None):
+        calibrate(Evaluator(error), BOUNDS, NAMES, settings, progress=False,
+                  expected_at_truth=(0.0, 1.0))  # fmt: skip
+    assert given == [True, False, False]

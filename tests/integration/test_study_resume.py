@@ -222,6 +222,21 @@ def test_a_result_whose_store_says_no_study_is_neither_resumed_nor_overwritten(
     assert _snapshot(finished_copy, sqlite_aux=False) == before
 
 
+def test_a_store_killed_while_being_made_is_resumed_afresh(
+    fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command
+) -> None:
+    """Second review, session 29: a run killed between creating its store file and writing
+    its schema leaves an empty file; with no result beside it, --resume starts the study
+    afresh (the refusal above is for a store that would seem to vouch for a result)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "evaluations.sqlite").write_bytes(b"")
+    config = study_writer(tmp_path, fast_rig, fast_data, out)
+    resumed = calibrate_command(config, "--resume")
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert json.loads((out / "result.json").read_text())["n_evaluations"] > 0
+
+
 def test_an_unreachable_scheduler_leaves_no_results_folder(
     fast_rig: Path, fast_data: Path, tmp_path: Path, study_writer, calibrate_command
 ) -> None:

@@ -127,6 +127,31 @@ def test_a_monitor_json_blocked_by_a_folder_is_named_before_any_campaign(
     assert not (copy["out"] / B).exists()  # refused before the campaign ran
 
 
+@pytest.mark.parametrize("left", ["folder", "result_without_store"])
+def test_a_later_campaigns_spoilt_results_folder_is_named_before_the_first_runs(
+    copy: dict[str, Any], capsys: pytest.CaptureFixture[str], left: str
+) -> None:
+    """Second review, session 29: run_study's refusals (a results file made a folder, a
+    result without its store) came on that campaign's turn, after earlier campaigns ran."""
+    for date, seed in (("2026-03-10", 3), ("2026-04-10", 4)):
+        copy["adder"](copy["folder"], copy["rig"], "TRAIN-1", date, seed=seed)
+    later = copy["out"] / "TRAIN-1" / "2026-04-10"
+    if left == "folder":
+        (later / "result.json").mkdir(parents=True)
+    else:
+        later.mkdir(parents=True)
+        (later / "result.json").write_text("{}")
+    assert _monitor(copy) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "campaign TRAIN-1/2026-04-10" in err and "Traceback" not in err
+    expected = {
+        "folder": "is a folder, where the results file",
+        "result_without_store": "already holds a result (result.json) without its evaluations",
+    }[left]
+    assert expected in err
+    assert not (copy["out"] / "TRAIN-1" / "2026-03-10").exists()  # refused before it ran
+
+
 def test_a_result_of_another_version_is_reused_only_on_the_same_runs(
     copy: dict[str, Any], capsys: pytest.CaptureFixture[str]
 ) -> None:
