@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -54,6 +55,23 @@ def fitted(
     return w
 
 
+def case_problem(
+    spec: Any, kind: tuple | None, seed: int, runs: int, noise: float
+) -> tuple[Any, StudyEvaluator]:
+    """The data of one case (the worn truth with the change ``kind``, as ``CHANGES`` gives
+    it: None, ("parameter", name, value) or ("effect", name, values)) and its paired
+    evaluator: ``runs`` runs of seed ``seed`` with ``noise`` m/s² of sensor noise."""
+    truth, effect = dict(WORN_TRUTH), None
+    if kind is not None and kind[0] == "parameter":
+        truth[kind[1]] = kind[2]
+    elif kind is not None:
+        effect = (kind[1], kind[2])
+    problem = synthesize_problem(
+        spec, effect, truth=truth, nu=runs, seed=seed, noise_m_s2=noise, output_error="paired"
+    )
+    return problem, StudyEvaluator(problem, problem.paired)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print one line per case."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -74,16 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
     truth_w = np.array([WORN_TRUTH[n] for n in NAMES], dtype=np.float64)
     for change, seed, runs, noise in parsed:
-        kind = changes[change]
-        truth, effect = dict(WORN_TRUTH), None
-        if kind is not None and kind[0] == "parameter":
-            truth[kind[1]] = kind[2]
-        elif kind is not None:
-            effect = (kind[1], kind[2])
-        problem = synthesize_problem(
-            spec, effect, truth=truth, nu=runs, seed=seed, noise_m_s2=noise, output_error="paired"
-        )
-        evaluator = StudyEvaluator(problem, problem.paired)
+        problem, evaluator = case_problem(spec, changes[change], seed, runs, noise)
         y = problem.measured
         weights = pure_error_weights(y, evaluator.spectra(truth_w[None])[0])
         weighted = fitted(evaluator, y, truth_w, weights)

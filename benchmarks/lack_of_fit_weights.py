@@ -44,8 +44,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from lack_of_fit_null import fitted
-from misspecified_model import CHANGES, NAMES, StudyEvaluator
+from lack_of_fit_null import case_problem, fitted
+from misspecified_model import CHANGES, NAMES
 
 from susp_bo.calibration.lack_of_fit import (
     FLOOR_SHARE,
@@ -53,7 +53,7 @@ from susp_bo.calibration.lack_of_fit import (
     lack_of_fit_ratio,
     pure_error_weights,
 )
-from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_problem
+from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec
 
 GAPS = (0, 1, 2, 3)
 """Neighbours on either side left out of a bin's weight besides the bin itself."""
@@ -92,16 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     print("case  F: equal weights | the rule's (gap 0) | gap 1 | gap 2 | gap 3", flush=True)
     table = []
     for change, seed, runs, noise in parsed:
-        kind = CHANGES[change]
-        truth, effect = dict(WORN_TRUTH), None
-        if kind is not None and kind[0] == "parameter":
-            truth[kind[1]] = kind[2]
-        elif kind is not None:
-            effect = (kind[1], kind[2])
-        problem = synthesize_problem(
-            spec, effect, truth=truth, nu=runs, seed=seed, noise_m_s2=noise, output_error="paired"
-        )
-        evaluator = StudyEvaluator(problem, problem.paired)
+        problem, evaluator = case_problem(spec, CHANGES[change], seed, runs, noise)
         y = problem.measured
         at_truth = evaluator.spectra(truth_w[None])[0]
         rule = pure_error_weights(y, at_truth)

@@ -52,7 +52,6 @@ Example (also in the README; the test suite loads this one)::
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -62,6 +61,7 @@ import tomli_w
 
 from susp_bo.rig.catalog import available_rigs, rig_path
 from susp_bo.rig.schema import did_you_mean, repeated, repeated_phrase
+from susp_bo.rig.toml_files import read_toml
 from susp_bo.study_sections import (
     SECTIONS,
     BudgetConfig,
@@ -145,8 +145,20 @@ class StudyConfig:
             ``parameters``, or all of ``calibration_names`` when None.
 
         Raises:
-            ValueError: naming the unknown names and the allowed ones.
+            ValueError: a rig without calibration parameters (naming its file), or
+                naming the unknown names and the allowed ones.
         """
+        if not calibration_names:  # a calibration needs q >= 1 (simulate/synth do not)
+            try:
+                where = f"rig {str(rig_path(self.rig))!r}"
+            except FileNotFoundError:
+                where = f"rig {self.rig!r}"
+            raise ValueError(
+                f"{where}: [[calibration.parameters]]: none given; calibrating (and "
+                "monitoring) needs at least one calibration parameter: add a "
+                "[[calibration.parameters]] entry (name, lower, upper, reference) for each "
+                "parameter to calibrate"
+            )
         if self.parameters is None:
             return tuple(calibration_names)
         unknown = [name for name in self.parameters if name not in calibration_names]
@@ -272,13 +284,8 @@ def load_study_config(path: str | Path) -> StudyConfig:
             also for TOML syntax errors and unknown keys.
     """
     path = Path(path)
+    data = read_toml(path)  # TomlFileError (a ValueError) names the file
     try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{path}: not a UTF-8 text file ({error}); expected TOML") from error
-    try:
-        return parse_study_config(tomllib.loads(text), path.resolve().parent)
-    except tomllib.TOMLDecodeError as error:
-        raise ValueError(f"{path}: not valid TOML ({error})") from error
+        return parse_study_config(data, path.resolve().parent)
     except (ValueError, TypeError) as error:
         raise ValueError(f"{path}: {error}") from error

@@ -10,6 +10,7 @@ import pytest
 
 import susp_bo.study_config as study_config
 import susp_bo.study_sections as study_sections
+from susp_bo.rig.catalog import rig_path
 from susp_bo.study_config import (
     BudgetConfig,
     ExecutorConfig,
@@ -268,3 +269,12 @@ def test_direct_construction_is_validated_too() -> None:
     with pytest.raises(ValueError, match=r"mcmc\.chains: 0 is not allowed"):
         MCMCConfig(chains=0)
     assert StudyConfig(rig="r", data="d", out="o").data == Path("d")  # type: ignore[arg-type]
+
+
+def test_a_rig_without_calibration_parameters_cannot_be_calibrated(tmp_path: Path) -> None:
+    config = StudyConfig(rig="hst_trailer", data=tmp_path, out=tmp_path / "out")
+    with pytest.raises(ValueError, match=r"\[\[calibration.parameters\]\]: none given") as raised:
+        config.check_parameters(())
+    message = str(raised.value)
+    assert message.startswith(f"rig {str(rig_path('hst_trailer'))!r}: ")
+    assert "needs at least one calibration parameter" in message

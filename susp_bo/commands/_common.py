@@ -2,31 +2,44 @@
 
 from __future__ import annotations
 
+import argparse
 import math
 import tempfile
-import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from susp_bo.cli import UsageError
 from susp_bo.data.measured import run_paths
 from susp_bo.output_folder import check_output_folder
 from susp_bo.rig.spec import SIMULATION_LIMITS
+from susp_bo.rig.toml_files import TomlFileError, read_toml
+
+if TYPE_CHECKING:
+    from susp_bo.rig.response import SimulationFailed
+    from susp_bo.rig.spec import RigSpec
 
 
-def read_parameter_file(path: str | Path) -> dict[str, float]:
+def read_parameter_file(path: str | Path, flag: str = "--params/--truth") -> dict[str, float]:
     """Parameter values from a TOML file: ``name = value`` at top level or under ``[parameters]``.
 
+    Args:
+        path: the file.
+        flag: the flag that gave it (``--params``, ``--truth``), named in messages.
+
     Raises:
-        UsageError: missing file, bad TOML, or a value that is not a finite number.
+        UsageError: missing file, a file that is not UTF-8 text, bad TOML, or a value that
+            is not a finite number.
     """
     file = Path(path)
     if not file.is_file():
-        raise UsageError(f"--params/--truth: file {str(file)!r} does not exist")
+        raise UsageError(f"{flag}: file {str(file)!r} does not exist")
     try:
-        data = tomllib.loads(file.read_text())
-    except tomllib.TOMLDecodeError as error:
-        raise UsageError(f"{file}: not valid TOML ({error})") from error
+        data = read_toml(file)
+    except TomlFileError as error:
+        raise UsageError(f"{flag}: {error}") from None
+    except OSError as error:
+        raise UsageError(f"{flag}: cannot read {str(file)!r} ({error.strerror or error})") from None
     table = data.get("parameters", data)
     if not isinstance(table, Mapping):
         raise UsageError(f"{file}: [parameters] must be a table of name = value")
@@ -174,3 +187,95 @@ def out_of_range(flag: str, key: str, value: float) -> str:
         f"{flag}: {value:g} {unit} is not allowed; allowed range ({low:g}, {high:g}] {unit} "
         f"(the rig's [simulation] {key})"
     )
+
+
+def _values_phrase(spec: RigSpec, values: Mapping[str, float]) -> str:
+    """``a = 0.9 (outside the rig's admissible interval [0.05, 0.5]), b = 2``."""
+    bounds = {c.name: c for c in spec.calibration}
+    parts = []
+    for name, value in values.items():
+        entry = bounds.get(name)
+        outside = entry is not None and not entry.lower <= value <= entry.upper
+        note = (
+            f" (outside the rig's admissible interval [{entry.lower:g}, {entry.upper:g}])"
+            if outside and entry is not None
+            else ""
+        )
+        parts.append(f"{name} = {value:g}{note}")
+    return ", ".join(parts)
+
+
+def diverged_message(
+    spec: RigSpec,
+    failure: SimulationFailed,
+    path: str | Path | None,
+    values: Mapping[str, float],
+    flag: str,
+    effects: Sequence[str] = (),
+    rig: str | Path | None = None,
+) -> str:
+    """The refusal of a simulation that failed (diverged): what was simulated, where it
+    failed, that nothing was written, and what to try.
+
+    Args:
+        spec: the rig as simulated (its speed and time step).
+        failure: the failure, with its reason (``diverged at t = 1.410 s: …``).
+        path: the parameter file (``--params``/``--truth``), None when none was given.
+        values: the values that file gave (named parameter -> SI value).
+        flag: the flag of that file, e.g. ``--params``.
+        effects: the effects switched on for the run (``synth --effect``).
+        rig: the rig as given on the command line (named when no file gave values).
+    """
+    settings = spec.simulation
+    if values:
+        where = f"{flag} {path}"
+        what = f"with {_values_phrase(spec, values)}"
+    else:
+        where = str(rig if rig is not None else spec.name)
+        what = "with the rig file's parameter values"
+    if effects:
+        what += f" and the effect{'s' * (len(effects) > 1)} {', '.join(effects)}"
+    return (
+        f"{where}: the simulation of rig {spec.name!r} {what}, at {settings.speed_m_s:g} m/s "
+        f"with a time step of {settings.time_step_s:g} s, failed: {failure.reason}; nothing "
+        "was written. Try values inside the rig's admissible bounds (its "
+        "[[calibration.parameters]] lower/upper), a smaller [simulation] time_step_s (in a "
+        "copy of the rig file) or another --speed"
+    )
+
+
+def refuse_unstable_speed(
+    spec: RigSpec,
+    args: argparse.Namespace,
+    values: Mapping[str, float],
+    flag: str,
+    effects: Sequence[str] = (),
+) -> None:
+    """Refuses a speed the rig's time step cannot simulate (it would diverge), before any
+    file is written (:mod:`susp_bo.rig.step_stability`).
+
+    Args:
+        spec: the rig as it will be simulated (``--speed``, the parameter file's values
+            and the effects applied).
+        args: the command line (``--speed``, the rig).
+        values: the parameter file's values (they can raise the minimum speed).
+        flag: the parameter file's flag, e.g. ``--params``.
+        effects: the effects switched on.
+
+    Raises:
+        UsageError: naming ``--speed`` (or the rig file's speed), the value and the minimum.
+    """
+    from susp_bo.rig.step_stability import speed_problem
+
+    given = getattr(args, "speed", None) is not None
+    label = "--speed" if given else f"{args.rig}: [simulation] speed_m_s"
+    try:
+        problem = speed_problem(spec, spec.simulation.speed_m_s, speed_label=label)
+    except ValueError as error:  # e.g. an effect's values the assembly refuses
+        raise UsageError(str(error)) from None
+    if problem is None:
+        return
+    changed = [f"the values of {flag}"] if values else []
+    changed += [f"--effect {name}" for name in effects]
+    with_changes = f"; that minimum is for {' and '.join(changed)}" if changed else ""
+    raise UsageError(problem + with_changes)

@@ -11,13 +11,16 @@ import numpy as np
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
+    diverged_message,
     listed,
     out_of_range,
     output_folder,
     read_line_file,
     read_parameter_file,
+    refuse_unstable_speed,
 )
 from susp_bo.json_files import write_json
+from susp_bo.rig.response import SimulationFailed
 from susp_bo.rig.simulator import Rig, synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.track import SpeedProfile
@@ -53,12 +56,13 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
             f"{args.rig}: its [simulation] and [spectrum] settings do not fit together "
             f"({error}); {remedy}"
         ) from None
-    parameters = read_parameter_file(args.params) if args.params else {}
+    parameters = read_parameter_file(args.params, "--params") if args.params else {}
     checked_output_folder(args.out)
     try:
         spec = spec.with_parameters(parameters)
     except ValueError as error:
         raise UsageError(str(error)) from error
+    refuse_unstable_speed(spec, args, parameters, "--params")
     return spec, parameters
 
 
@@ -82,13 +86,16 @@ def refuse_earlier_run(out: str | Path) -> None:
 
 
 def run_simulate(args: argparse.Namespace) -> int:
-    """Simulate the rig once and write ``signals.npz``, ``spectra.json`` and ``simulate.png``."""
+    """Simulate the rig once and write ``signals.npz``, ``spectra.json`` and ``simulate.png``.
+
+    A run that diverges is refused (exit code 2) naming ``--params`` and the values
+    simulated, before ``--out`` is created: nothing is written.
+    """
     from susp_bo.response_plots import plot_response
 
-    spec, _ = prepared_spec(args)
+    spec, parameters = prepared_spec(args)
     refuse_earlier_run(args.out)
     design = read_line_file(getattr(args, "line", None), spec)
-    out = output_folder(args.out)
     settings = spec.simulation
     speed = SpeedProfile.constant(settings.speed_m_s, settings.warm_up_s + settings.duration_s)
     geometry = synthetic_track(spec, seed=args.seed)
@@ -97,9 +104,15 @@ def run_simulate(args: argparse.Namespace) -> int:
         f"{settings.duration_s:.1f} s after {settings.warm_up_s:.1f} s warm-up, seed {args.seed}",
         file=sys.stderr,
     )
-    with Rig(spec) as rig:
-        response = rig.simulate(geometry, speed, design=design)
+    try:
+        with Rig(spec) as rig:
+            response = rig.simulate(geometry, speed, design=design)
+    except SimulationFailed as failure:
+        raise UsageError(
+            diverged_message(spec, failure, args.params, parameters, "--params", rig=args.rig)
+        ) from None
     spectra = response.spectra(spec.spectrum)
+    out = output_folder(args.out)  # created only now: a failed run leaves nothing behind
     np.savez_compressed(
         out / "signals.npz",
         time_s=response.time_s,

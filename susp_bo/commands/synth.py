@@ -9,18 +9,21 @@ from pathlib import Path
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
     checked_output_folder,
+    diverged_message,
     existing_runs,
     listed,
     out_of_range,
     output_folder,
     read_line_file,
     read_parameter_file,
+    refuse_unstable_speed,
 )
 from susp_bo.data.measured import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.discrepancy.effects import with_effect
 from susp_bo.json_files import write_json
 from susp_bo.rig.assembly import build_assembly
+from susp_bo.rig.response import SimulationFailed
 from susp_bo.rig.spec import load_rig_spec
 
 TRUTH_NAME = "truth.json"
@@ -95,13 +98,15 @@ def run_synth(args: argparse.Namespace) -> int:
 
     ``--effect NAME[:k=v,...]`` switches a library effect on in the generator
     (:mod:`susp_bo.discrepancy.effects`); ``truth.json`` lists the effects with
-    their values, the run metadata names them.
+    their values, the run metadata names them. A run that diverges is refused (exit
+    code 2) naming ``--truth`` and the values simulated, before ``--out`` is created:
+    nothing is written.
     """
     effects = parse_effects(args.effect)
     refuse_existing_data(checked_output_folder(args.out))
     try:
         spec = load_rig_spec(args.rig)
-        truth = read_parameter_file(args.truth) if args.truth else {}
+        truth = read_parameter_file(args.truth, "--truth") if args.truth else {}
         spec.with_parameters(truth)
         for name, values in effects:  # the hidden physics: on in the generator only
             spec = with_effect(spec, name, values)
@@ -119,18 +124,26 @@ def run_synth(args: argparse.Namespace) -> int:
         except ValueError:
             raise UsageError(out_of_range("--speed", "speed_m_s", args.speed)) from None
     line_spec = spec.with_simulation(speed_m_s=args.speed) if args.speed is not None else spec
+    names = [name for name, _ in effects]
+    refuse_unstable_speed(line_spec.with_parameters(truth), args, truth, "--truth", names)
     design = read_line_file(getattr(args, "line", None), line_spec)
-    out = output_folder(args.out)
     print(f"susp-bo synth: {args.nu} runs of {spec.name}, seed {args.seed}", file=sys.stderr)
-    runs = synthesize_runs(
-        spec,
-        truth,
-        nu=args.nu,
-        seed=args.seed,
-        noise_m_s2=args.noise,
-        speed_m_s=args.speed,
-        design=design,
-    )
+    try:
+        runs = synthesize_runs(
+            spec,
+            truth,
+            nu=args.nu,
+            seed=args.seed,
+            noise_m_s2=args.noise,
+            speed_m_s=args.speed,
+            design=design,
+        )
+    except SimulationFailed as failure:
+        simulated = line_spec.with_parameters(truth)
+        raise UsageError(
+            diverged_message(simulated, failure, args.truth, truth, "--truth", names, args.rig)
+        ) from None
+    out = output_folder(args.out)  # created only now: a failed run leaves nothing behind
     for index, run in enumerate(runs):
         save_run(run, out / f"run_{index:03d}.h5")
     write_json(

@@ -31,7 +31,6 @@ from __future__ import annotations
 import datetime as dt
 import logging
 import re
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +38,7 @@ from typing import Any
 
 from susp_bo.calibration.study_inputs import import_hint
 from susp_bo.data.measured import RUN_SUFFIXES, MeasuredDataError, load_run, run_paths
+from susp_bo.rig.toml_files import TomlFileError, read_toml
 
 logger = logging.getLogger(__name__)
 
@@ -120,12 +120,14 @@ def _shown(value: object) -> str:
 
 def _manifest(folder: Path) -> dict[str, Any] | None:
     path = folder / MANIFEST_NAME
+    if path.exists() and not path.is_file():  # a folder read as "no vehicle" (probe, s. 29)
+        raise CampaignError(f"{path}: not a file; expected the campaign's settings (TOML)")
     if not path.is_file():
         return None
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as error:
-        raise CampaignError(f"{path}: not valid TOML ({error})") from None
+        data = read_toml(path)
+    except TomlFileError as error:  # not UTF-8 text, or not valid TOML: names the file
+        raise CampaignError(str(error)) from None
     unknown = sorted(set(data) - set(_MANIFEST_KEYS))
     if unknown:
         raise CampaignError(

@@ -39,7 +39,6 @@ from __future__ import annotations
 import dataclasses
 import numbers
 import sys
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -61,21 +60,15 @@ from susp_bo.monitoring.alarms import (
     trust,
 )
 from susp_bo.monitoring.campaign_checks import check_campaign, small_budget_problem, with_budget
-from susp_bo.monitoring.campaign_results import (
-    CampaignResultError,
-    read_finished,
-)
+from susp_bo.monitoring.campaign_results import CampaignResultError, read_finished
 from susp_bo.monitoring.campaigns import Campaign, CampaignError, discover_campaigns
 from susp_bo.monitoring.warm_start import plan_warm_start
 from susp_bo.output_folder import check_output_files
 from susp_bo.output_lock import OutputFolderBusy, refuse_if_busy
 from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import load_rig_spec
-from susp_bo.study_config import (
-    ExecutorConfig,
-    StudyConfig,
-    parse_study_config,
-)
+from susp_bo.rig.toml_files import TomlFileError, read_toml
+from susp_bo.study_config import ExecutorConfig, StudyConfig, parse_study_config
 from susp_bo.study_sections import SECTIONS
 
 MONITOR_CONFIG_NAME = "monitor.toml"
@@ -124,11 +117,13 @@ def base_config(
     """
     path = folder / MONITOR_CONFIG_NAME
     mapping: dict[str, Any] = {}
+    if path.exists() and not path.is_file():  # a folder was ignored (outside probe, s. 29)
+        raise MonitorError(f"{path}: not a file; expected the monitoring settings (TOML)")
     if path.is_file():
         try:
-            mapping = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-            raise MonitorError(f"{path}: not valid TOML ({error})") from None
+            mapping = read_toml(path)
+        except TomlFileError as error:  # not UTF-8 text, or not valid TOML: names the file
+            raise MonitorError(str(error)) from None
         for key in ("data", "out"):
             if key in mapping:
                 raise MonitorError(

@@ -389,7 +389,8 @@ def _finish(
         if sensor.body not in builder.bodies or builder.bodies[sensor.body].kind != "rigid":
             rigid = [b.name for b in bodies if b.kind == "rigid"]
             raise ValueError(
-                f"sensor {sensor.name!r}.body: got {sensor.body!r}; allowed {', '.join(rigid)}"
+                f"[[sensors]] entry {row + 1} ({sensor.name!r}): body {sensor.body!r} is not "
+                f"allowed; allowed bodies: {', '.join(rigid)} (a sensor sits on a rigid body)"
             )
         axis = "z" if sensor.direction == "vertical" else "y"
         acceleration[row], _ = builder.point_rows(sensor.body, sensor.position_m, axis)

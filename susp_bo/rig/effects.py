@@ -12,7 +12,7 @@ is looked up. An unknown effect name is an error before any simulation runs.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 LIBRARY_MODULE = "susp_bo.discrepancy.effects"
@@ -44,6 +44,30 @@ def available_effects() -> tuple[str, ...]:
     """Names of the registered effects (the library included), sorted."""
     _load_library()
     return tuple(sorted(_REGISTRY))
+
+
+def check_effect_names(names: Iterable[str]) -> None:
+    """Refuses an effect name that is not registered (the library loaded first).
+
+    Args:
+        names: the effect names of a rig (``[effects.<name>]``), enabled or not.
+
+    Raises:
+        ValueError: ``"[effects.<name>]: unknown effect '<name>' (did you mean 'x'?);
+            allowed effects: …"``.
+    """
+    from susp_bo.rig.schema import did_you_mean
+
+    unknown = [name for name in names if name not in _REGISTRY]
+    if unknown:
+        _load_library()
+    for name in unknown:
+        if name not in _REGISTRY:
+            allowed = available_effects()
+            raise ValueError(
+                f"[effects.{name}]: unknown effect {name!r}{did_you_mean(name, allowed)}; "
+                f"allowed effects: {', '.join(allowed) or '(none registered)'}"
+            )
 
 
 def apply_effects(spec: Any, builder: Any) -> None:

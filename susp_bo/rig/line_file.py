@@ -32,7 +32,6 @@ file, the segment number, the value and what is allowed.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -40,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo.rig.design import MAX_CANT_M, MAX_GRADIENT, MIN_RADIUS_M, DesignError, TrackDesign
+from susp_bo.rig.toml_files import TomlFileError, read_toml
 
 _KEYS = {
     "tangent": {"type", "length_m", "gradient_permille"},
@@ -176,9 +176,9 @@ def load_line(path: str | Path) -> TrackDesign:
     if not file.is_file():
         raise DesignError(f"file {str(file)!r} does not exist")
     try:
-        data = tomllib.loads(file.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise DesignError(f"{file}: not valid TOML ({error})") from None
+        data = read_toml(file)
+    except TomlFileError as error:  # not UTF-8 text, or not valid TOML: names the file
+        raise DesignError(str(error)) from None
     unknown = sorted(set(data) - {"line", "segments"})
     if unknown:
         raise DesignError(f"{file}: unknown table(s) {unknown}; allowed [line], [[segments]]")

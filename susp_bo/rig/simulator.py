@@ -8,7 +8,9 @@ Example:
 
 Every input is checked before the first step (parameters, speed, track length,
 band vs Nyquist and record length); a run that diverges raises
-:class:`SimulationFailed` with the reason instead of returning numbers.
+:class:`SimulationFailed` with the reason instead of returning numbers, and so does,
+before the first step, a run slower than the time step can simulate
+(:mod:`susp_bo.rig.step_stability`).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from susp_bo.rig.response import RigResponse, SimulationFailed
 from susp_bo.rig.sensors import sample_decimated
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.spectra import Spectra, SpectrumSettings
+from susp_bo.rig.step_stability import speed_problem
 from susp_bo.rig.track import AxleExcitation, SpeedProfile, TrackGeometry, axle_excitation
 from susp_bo.rig.world import VehicleWorld
 
@@ -282,7 +285,10 @@ class Rig:
 
         Raises:
             ValueError: bad input (detected before any step).
-            SimulationFailed: divergence.
+            SimulationFailed: divergence; or, before any step, a run slower than the
+                time step can simulate (:mod:`susp_bo.rig.step_stability`: it would
+                diverge, or return meaningless signals where PyBullet's clamp on joint
+                velocities holds it below the divergence limit).
         """
         if self._world is None:
             raise RuntimeError("Rig: closed")
@@ -310,6 +316,9 @@ class Rig:
         )
         profile = _speed_profile(speed, total)
         speeds = profile.speed_at(excitation.time_s)
+        unstable = speed_problem(spec, float(np.min(speeds)), assembly, "the run's slowest speed")
+        if unstable is not None:  # before any step: the step would diverge
+            raise SimulationFailed(unstable)
         forces = ForceModel(assembly, self.linear_elements)
         terms, stroke0, q0 = None, None, None
         if design is not None:

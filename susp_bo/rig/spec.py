@@ -17,7 +17,9 @@ calibrated like any other.
 
 Every check runs when the spec is built, so bad input fails before any
 simulation: unknown names, non-finite values, non-positive masses/inertias,
-negative stiffnesses/dampings, calibration values outside their interval. The entries
+negative stiffnesses/dampings, calibration values outside their interval; a parsed
+rig file is also assembled (:func:`check_buildable`): unknown effects, sensors on no
+rigid body and a speed its time step cannot simulate are refused at load. The entries
 (calibrated parameters, sensors, simulation defaults) and the sign rules are in
 :mod:`susp_bo.rig.spec_entries`; this module assembles and parses the whole rig.
 """
@@ -27,7 +29,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -47,6 +48,7 @@ from susp_bo.rig.spec_entries import (
     check_parameter_value,
     require_number,
 )
+from susp_bo.rig.toml_files import read_toml
 
 if TYPE_CHECKING:
     from susp_bo.rig.spectra import SpectrumSettings
@@ -356,7 +358,7 @@ def _build_rig(data: Mapping[str, Any], source: str) -> RigSpec:
                 f"{source}: calibration parameter {name!r} reference {entry['reference']} differs "
                 f"from the rig value {parameters[name]}"
             )
-    return RigSpec(
+    spec = RigSpec(
         name=str(rig["name"]),
         topology=topology,
         parameters=parameters,
@@ -368,6 +370,32 @@ def _build_rig(data: Mapping[str, Any], source: str) -> RigSpec:
         description=str(rig.get("description", "")),
         reference=str(rig.get("reference", "")),
     )
+    check_buildable(spec)
+    return spec
+
+
+def check_buildable(spec: RigSpec) -> None:
+    """The checks that need the assembled vehicle, run when a rig is loaded: every effect
+    is registered, every sensor sits on a rigid body of the topology, the effects' options
+    are valid, and the rig's time step can simulate its speed
+    (:mod:`susp_bo.rig.step_stability`).
+
+    Args:
+        spec: the rig.
+
+    Raises:
+        ValueError: naming the entry (``[effects.<name>]``, ``[[sensors]] entry i``,
+            ``[simulation] speed_m_s``), the value and what is allowed.
+    """
+    from susp_bo.rig.assembly import build_assembly
+    from susp_bo.rig.effects import check_effect_names
+    from susp_bo.rig.step_stability import speed_problem
+
+    check_effect_names(spec.effects)
+    assembly = build_assembly(spec)
+    problem = speed_problem(spec, spec.simulation.speed_m_s, assembly, "[simulation] speed_m_s")
+    if problem is not None:
+        raise ValueError(problem)
 
 
 def load_rig_spec(name_or_path: str | Path) -> RigSpec:
@@ -375,12 +403,8 @@ def load_rig_spec(name_or_path: str | Path) -> RigSpec:
 
     Raises:
         FileNotFoundError: no such rig.
-        ValueError: invalid content (the message names the file, the field and the value).
+        ValueError: a file that is not UTF-8 text or not valid TOML, or invalid content (the
+            message names the file, the field and the value).
     """
     path = rig_path(name_or_path)
-    with path.open("rb") as handle:
-        try:
-            data = tomllib.load(handle)
-        except tomllib.TOMLDecodeError as error:
-            raise ValueError(f"{path}: not valid TOML ({error})") from None
-    return parse_rig(data, source=str(path))
+    return parse_rig(read_toml(path), source=str(path))

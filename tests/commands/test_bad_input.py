@@ -415,3 +415,25 @@ def test_a_run_that_does_not_fit_the_band_is_named_by_its_file(
     argv = ["calibrate", str(rigs["short_a"]), str(data), "--out", str(out)]
     _refused(capsys, argv, f"data: {data / 'cut_short.h5'}: ", "Welch segment")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "prefix"),
+    [
+        (["simulate", "hst_trailer", "--out", "{o}", "--params", "{b}"], "--params: "),
+        (["synth", "hst_trailer", "--out", "{o}", "--truth", "{b}"], "--truth: "),
+        (["simulate", "{b}", "--out", "{o}"], ""),
+        (["simulate", "hst_trailer", "--out", "{o}", "--line", "{b}"], "--line: "),
+        (["calibrate", "{b}"], ""),
+    ],
+    ids=["params", "truth", "rig", "line", "study"],
+)
+def test_a_toml_file_that_is_not_utf8_text_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], argv: list[str], prefix: str
+) -> None:
+    binary = tmp_path / "b.toml"
+    binary.write_bytes(b"\xff\xfe\x00")
+    out = tmp_path / "o"
+    argv = [a.replace("{b}", str(binary)).replace("{o}", str(out)) for a in argv]
+    _refused(capsys, argv, f"{prefix}{binary}: not a UTF-8 text file (byte 0xff at position 0")
+    assert not out.exists()

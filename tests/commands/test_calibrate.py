@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import pytest
+import tomli_w
 
 from susp_bo.cli import build_parser, main
+from susp_bo.rig.catalog import rig_path
 
 
 @pytest.fixture
@@ -182,3 +185,42 @@ def test_one_run_on_the_command_line_is_told_where_sigma_goes(
     assert "'estimate' needs at least 2 measured runs (found 1)" in err
     assert "in the [output_error] section of a study .toml" in err
     assert not (out / "evaluations.sqlite").exists()
+
+
+def _edited_rig(folder: Path, edit: str) -> Path:
+    """The reference rig with one change (see the parametrisations below)."""
+    document = tomllib.loads(rig_path("hst_trailer").read_text())
+    if edit == "empty-calibration":
+        document["calibration"]["parameters"] = []
+    elif edit == "no-calibration":
+        del document["calibration"]
+    elif edit == "sensor-body":
+        document["sensors"][0]["body"] = "roof"
+    else:
+        document["effects"] = {"nosuch": {}}
+    path = folder / f"{edit}.toml"
+    path.write_text(tomli_w.dumps(document))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [
+        ("empty-calibration", "[[calibration.parameters]]: none given; calibrating (and "),
+        ("no-calibration", "needs at least one calibration parameter"),
+        ("sensor-body", "body 'roof' is not allowed; allowed bodies: carbody, bogie_front"),
+        ("effect", "[effects.nosuch]: unknown effect 'nosuch'"),
+    ],
+)
+def test_a_rig_that_cannot_be_calibrated_is_refused_before_anything_is_written(
+    data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], edit: str, needle: str
+) -> None:
+    # these used to create the store and fail with a traceback (no calibration parameter),
+    # or run all 80 design simulations and say "every log L evaluation failed"
+    rig = _edited_rig(tmp_path, edit)
+    out = tmp_path / "out"
+    code = main(["calibrate", str(rig), str(data_dir), "--out", str(out), "--workers", "0"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert needle in err and str(rig) in err
+    assert "Traceback" not in err and not out.exists()

@@ -153,3 +153,32 @@ def test_a_missing_line_file_names_the_flag_once(
     err = capsys.readouterr().err
     assert f"susp-bo synth: --line: file {missing!r} does not exist" in err
     assert err.count("--line") == 1
+
+
+def test_a_truth_that_diverges_is_refused_naming_the_file_and_values_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    truth = tmp_path / "hunting.toml"
+    truth.write_text("contact_equivalent_conicity = 0.9\n")  # the wheelsets hunt at 83 m/s
+    out = tmp_path / "d"
+    code = main(["synth", "hst_trailer", "--out", str(out), "--truth", str(truth), "--nu", "1"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "Traceback" not in err
+    assert (
+        f"--truth {truth}: the simulation of rig 'hst_trailer' with "
+        "contact_equivalent_conicity = 0.9, at 83.33 m/s with a time step of 0.002 s, failed: "
+        "diverged at t = 1." in err
+    )
+    assert "nothing was written" in err
+    assert not out.exists()
+
+
+def test_a_speed_below_the_time_steps_minimum_is_refused_naming_it(
+    fast_rig: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "d"
+    assert main(["synth", str(fast_rig), "--out", str(out), "--speed", "20", "--nu", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--speed: 20 m/s is not allowed: below the minimum speed 24.99 m/s" in err
+    assert "Traceback" not in err and not out.exists()

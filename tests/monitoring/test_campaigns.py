@@ -265,3 +265,22 @@ def test_a_campaign_dated_after_today_is_warned_about_not_refused(
     warned = [r.getMessage() for r in caplog.records]
     assert len(warned) == 1 and "campaign date 9999-02-01 is after today" in warned[0]
     assert "typo" in warned[0] and "mistyped" in warned[0]
+
+
+def test_a_campaign_toml_that_is_not_utf8_text_is_named(tmp_path: Path) -> None:
+    folder = _campaign(tmp_path / "c", {"vehicle": "A", "date": "2026-01-01"})
+    manifest = folder / "campaign.toml"
+    manifest.write_bytes('vehicle = "Zürich 1"\n'.encode("utf-16"))  # a UTF-16 export
+    with pytest.raises(CampaignError) as raised:
+        read_campaign(folder)
+    assert str(raised.value).startswith(f"{manifest}: not a UTF-8 text file (byte 0xff at")
+
+
+def test_a_campaign_toml_that_is_a_folder_is_named(tmp_path: Path) -> None:
+    """Outside probe, session 29: a folder named campaign.toml was read as "no vehicle"."""
+    folder = _campaign(tmp_path / "c", {"vehicle": "A", "date": "2026-01-01"})
+    manifest = folder / "campaign.toml"
+    manifest.unlink(missing_ok=True)
+    manifest.mkdir()
+    with pytest.raises(CampaignError, match=f"{manifest}: not a file; expected the campaign"):
+        read_campaign(folder)

@@ -84,6 +84,29 @@ def test_an_unknown_key_of_monitor_toml_lists_only_the_keys_it_allows(
     assert "data" not in err.split("allowed keys:")[1]  # data and out are refused there
 
 
+@pytest.mark.parametrize("damage", ["folder", "utf16"])
+def test_a_monitor_toml_that_is_no_utf8_file_is_named(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], damage: str
+) -> None:
+    """Outside probe, session 29: a folder named monitor.toml was ignored (the default rig
+    was used and the error was about a rig mismatch); a UTF-16 file said "not valid TOML"."""
+    shutil.copytree(folder, tmp_path / "campaigns")
+    config = tmp_path / "campaigns" / "monitor.toml"
+    text = config.read_text()
+    config.unlink()
+    if damage == "folder":
+        config.mkdir()
+    else:
+        config.write_bytes(text.encode("utf-16"))
+    err = _refused(tmp_path / "campaigns", tmp_path / "out", capsys)
+    expected = (
+        "not a file; expected the monitoring"
+        if damage == "folder"
+        else ("not a UTF-8 text file (byte 0xff at position 0")
+    )
+    assert f"{config}: {expected}" in err and "Traceback" not in err
+
+
 def test_a_rig_path_on_the_command_line_is_relative_to_the_current_folder(
     folder: Path, fast_rig: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -161,11 +161,39 @@ def test_variable_speed_runs_and_changes_the_response(short_spec: RigSpec, rig: 
 
 
 def test_divergence_is_reported_not_returned(short_spec: RigSpec) -> None:
-    # 10 ms is beyond the explicit stability limit of the bogie yaw mode (≈32 Hz)
+    # a conicity of 0.9 makes the wheelsets hunt at 83 m/s (a physical instability: the
+    # time step is stable, so the run starts and the divergence check stops it)
+    hunting = short_spec.with_parameters({"contact_equivalent_conicity": 0.9})
+    with Rig(hunting) as r, pytest.raises(SimulationFailed) as failure:
+        r.spectra(synthetic_track(hunting, seed=0))
+    assert failure.value.reason.startswith("diverged at t = ")
+
+
+def test_a_time_step_too_long_for_any_speed_is_refused_before_any_step(
+    short_spec: RigSpec,
+) -> None:
+    # 10 ms is beyond the explicit stability limit of the bogie yaw mode (≈32 Hz): the run
+    # diverged at t = 0.05 s; it is now refused before the first step, naming the step
     unstable = short_spec.with_simulation(time_step_s=0.01, warm_up_s=1.0)
     with Rig(unstable) as r, pytest.raises(SimulationFailed) as failure:
         r.spectra(synthetic_track(unstable, seed=0))
-    assert "diverged" in failure.value.reason
+    assert "[simulation] time_step_s: 0.01 s is too long" in failure.value.reason
+
+
+def test_a_speed_below_the_step_limit_is_refused_not_returned_as_noise(
+    short_spec: RigSpec,
+) -> None:
+    # at 5 m/s the 2 ms step is unstable for the wheelset creep damping (minimum 7.91
+    # m/s); PyBullet's joint-velocity clamp kept the run below the divergence limit and it
+    # returned bogie accelerations of ~300 m/s² as if they were a response
+    track = synthetic_track(short_spec.with_simulation(speed_m_s=5.0), seed=0)
+    with Rig(short_spec) as r, pytest.raises(SimulationFailed) as failure:
+        r.simulate(track, speed=5.0)
+    assert "5 m/s is not allowed: below the minimum speed 7.91 m/s" in failure.value.reason
+    slow = SpeedProfile(np.array([0.0, 20.0]), np.array([30.0, 6.0]))  # its slowest speed
+    longer = synthetic_track(short_spec.with_simulation(speed_m_s=30.0), seed=0)
+    with Rig(short_spec) as r, pytest.raises(SimulationFailed, match=r"slowest speed: 6 m/s"):
+        r.simulate(longer, speed=slow)
 
 
 def test_rig_spectra_use_the_rig_band(reference_response: RigResponse, short_spec: RigSpec) -> None:

@@ -120,7 +120,12 @@ def test_round_trip_through_a_written_toml_file(tmp_path) -> None:
         (lambda d: d.update(suspension={"x": 1.0}), r"top level: suspension: unknown key"),
         (lambda d: d["primary"].pop("vertical_stiffness"), "missing parameters"),
         (lambda d: d["sensors"][0].update(direction="longitudinal"), "direction"),
-        (lambda d: d["sensors"][0].update(body="wheelset_1"), None),
+        (
+            lambda d: d["sensors"][0].update(body="wheelset_1"),
+            r"\[\[sensors\]\] entry 1 \('carbody_front_vertical'\): body 'wheelset_1' is not "
+            r"allowed; allowed bodies: carbody, bogie_front, bogie_rear",
+        ),
+        (lambda d: d["sensors"][2].update(body="roof"), r"entry 3 .*: body 'roof' is not allowed"),
         (lambda d: d["simulation"].update(sample_rate_hz=300.0), "integer multiple"),
         (lambda d: d["simulation"].update(speed_m_s=0.0), "speed_m_s"),
         (lambda d: d["spectrum"].update(f_min_hz=0.1), "f_min_hz"),
@@ -133,20 +138,33 @@ def test_round_trip_through_a_written_toml_file(tmp_path) -> None:
             lambda d: d["calibration"]["parameters"][1].update(name="nonexistent"),
             "not a named parameter",
         ),
-        (lambda d: d.update(effects={"no_such_effect": {}}), None),
+        (
+            lambda d: d.update(effects={"no_such_effect": {}}),
+            r"\[effects.no_such_effect\]: unknown effect 'no_such_effect'; allowed effects: "
+            r".*carbody_bending",
+        ),
+        (
+            lambda d: d.update(effects={"carbody_bendin": {"enabled": False}}),
+            r"unknown effect 'carbody_bendin' \(did you mean 'carbody_bending'\?\)",
+        ),
+        (
+            lambda d: d["simulation"].update(speed_m_s=5.0),
+            r"\[simulation\] speed_m_s: 5 m/s is not allowed: below the minimum speed 7\.91",
+        ),
+        (
+            lambda d: d["simulation"].update(time_step_s=0.01),
+            r"\[simulation\] time_step_s: 0\.01 s is too long for rig 'hst_trailer'",
+        ),
     ],
 )
 def test_invalid_rig_files_fail_with_a_named_field(edit, message) -> None:
+    """Also what used to pass the load and fail only once simulations ran (a sensor on
+    no body, an unknown effect) or diverge (a speed the time step cannot simulate)."""
     document = _document()
     edit(document)
-    if message is None:  # detected when the vehicle is assembled (before any simulation)
-        from susp_bo.rig.assembly import build_assembly
-
-        with pytest.raises(ValueError, match=r"sensor|effect"):
-            build_assembly(parse_rig(document))
-        return
-    with pytest.raises(ValueError, match=message):
-        parse_rig(document)
+    with pytest.raises(ValueError, match=message) as raised:
+        parse_rig(document, source="edited.toml")
+    assert str(raised.value).startswith("edited.toml: ")
 
 
 @pytest.mark.parametrize(
@@ -202,6 +220,14 @@ def test_invalid_toml_names_the_file_and_line(tmp_path) -> None:
     path.write_text('[rig]\nname = "x"\n[carbody\nmass = 1.0\n')
     with pytest.raises(ValueError, match=r"broken.toml: not valid TOML .*line 3"):
         load_rig_spec(path)
+
+
+def test_a_rig_file_that_is_not_utf8_text_is_named(tmp_path) -> None:
+    path = tmp_path / "binary.toml"
+    path.write_bytes(b"\xff\xfe\x00")
+    with pytest.raises(ValueError, match=r"binary\.toml: not a UTF-8 text file") as raised:
+        load_rig_spec(path)
+    assert str(raised.value).startswith(f"{path}: ")
 
 
 def test_effects_table_is_parsed_for_the_registry() -> None:
