@@ -45,6 +45,7 @@ from susp_bo.output_folder import (
 )
 from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec, load_rig_spec
+from susp_bo.rig.step_stability import speed_problem
 from susp_bo.store_fingerprint import study_fingerprint
 from susp_bo.study_config import StudyConfig
 
@@ -172,6 +173,15 @@ def check_resume_budget(config: StudyConfig) -> None:
         )
 
 
+def _slowest_speed(run: MeasuredRun) -> float:
+    """The slowest speed (m/s) a simulation of ``run`` goes through: its speed profile from
+    0 to the end of its accelerations (piecewise linear, so the samples and that end)."""
+    end_s = run.time_offset_s + (run.n_samples - 1) / run.sample_rate_hz
+    speed = run.speed
+    inside = np.asarray(speed.speed_m_s)[np.asarray(speed.time_s) <= end_s]
+    return float(min(np.min(inside, initial=np.inf), float(speed.speed_at(end_s))))
+
+
 def check_results_folder(config: StudyConfig, resume: bool) -> None:
     """Refuse, before any simulation, a results folder the study would spoil.
 
@@ -244,6 +254,11 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     except ValueError as error:
         raise StudyError(f"data: {error}{import_hint(config.data)}") from error
     check_runs_rig(runs, spec.name, config.data)
+    slowest = {name: _slowest_speed(run) for name, run in zip(run_names(runs, config.data), runs)}
+    name = min(slowest, key=slowest.__getitem__)  # the slowest run decides (probe, s. 29)
+    problem = speed_problem(spec, slowest[name], speed_label=f"data: {config.data / name}")
+    if problem is not None:  # every simulation of it would be refused, one by one
+        raise StudyError(problem)
     try:
         measured = np.stack(
             [run.spectra(spec.spectrum, design_removal(spec, run)).log_amplitude for run in runs]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 import tomli_w
 
@@ -224,3 +225,27 @@ def test_a_rig_that_cannot_be_calibrated_is_refused_before_anything_is_written(
     assert code == 2, err
     assert needle in err and str(rig) in err
     assert "Traceback" not in err and not out.exists()
+
+
+def test_measured_runs_slower_than_the_time_step_allows_are_refused_before_any_simulation(
+    fast_rig: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Helper's note, session 29: a run slower than the explicit step can simulate failed
+    evaluation by evaluation; the slowest run is now named before the store is made."""
+    import dataclasses
+
+    from susp_bo.data.measured import load_run, save_run
+    from susp_bo.rig.track import SpeedProfile
+
+    data = tmp_path / "data"
+    assert main(["synth", str(fast_rig), "--out", str(data), "--nu", "2", "--seed", "1"]) == 0
+    run = load_run(data / "run_001.h5")
+    slow = SpeedProfile(time_s=np.array([0.0, 5.0, 30.0]), speed_m_s=np.array([83.33, 20.0, 20.0]))
+    (data / "run_001.h5").unlink()
+    save_run(dataclasses.replace(run, speed=slow), data / "run_001.h5")
+    capsys.readouterr()
+    out = tmp_path / "out"
+    assert main(["calibrate", str(fast_rig), str(data), "--out", str(out)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"data: {data / 'run_001.h5'}: " in err and "below the minimum speed 24.99 m/s" in err
+    assert "Traceback" not in err and not (out / "evaluations.sqlite").exists()
