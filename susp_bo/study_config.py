@@ -85,6 +85,33 @@ __all__ = [
 ]
 
 
+def _unknown_hint(name: str, calibration_names: Sequence[str], rig: str) -> str:
+    """What is wrong with ``name``, a study parameter outside the calibration set: for a
+    per-component name ``<parameter>@<component>`` the component check of
+    :func:`~susp_bo.rig.components.split_component_name` against ``rig``'s parameters (a
+    misspelled component or parameter, with the closest valid one, or one without a
+    per-component form), or that a valid one needs its own ``[[calibration.parameters]]``
+    entry; else the closest calibration name."""
+    from susp_bo.rig.components import is_component_name, split_component_name
+    from susp_bo.rig.spec import load_rig_spec
+
+    if not is_component_name(name):
+        return did_you_mean(name, calibration_names)
+    try:
+        spec = load_rig_spec(rig)
+        known, topology = spec.parameters, spec.topology
+    except (FileNotFoundError, ValueError):  # the rig's own error is reported elsewhere
+        known, topology = None, "two_bogie_car"
+    try:
+        split_component_name(name, known, topology)
+    except ValueError as error:
+        return f" ({error})"
+    return (
+        f" ({name!r} is a valid per-component name, but the rig calibrates it only with an "
+        f"entry of its own: [[calibration.parameters]] name = {name!r}, lower, upper)"
+    )
+
+
 @dataclass(frozen=True)
 class StudyConfig:
     """Everything a calibration study runs with.
@@ -164,7 +191,8 @@ class StudyConfig:
         unknown = [name for name in self.parameters if name not in calibration_names]
         if unknown:
             raise ValueError(
-                f"parameters: {unknown} not in the calibration set of rig {self.rig!r}; "
+                f"parameters: {unknown} not in the calibration set of rig {self.rig!r}"
+                f"{_unknown_hint(unknown[0], calibration_names, self.rig)}; "
                 f"allowed: {list(calibration_names)}"
             )
         return self.parameters

@@ -246,6 +246,39 @@ def test_check_parameters_names_unknown_and_allowed(study_folder: Path) -> None:
         config.check_parameters(("primary_vertical_stiffness",))
 
 
+@pytest.mark.parametrize(
+    ("name", "hint"),
+    [
+        (
+            "yaw_damper_damping@bogie_front_lef",
+            "(parameter 'yaw_damper_damping@bogie_front_lef': unknown component 'bogie_front_lef' "
+            "of yaw_damper_damping (did you mean 'bogie_front_left'?); valid components: "
+            "bogie_front_left, bogie_front_right, bogie_rear_left, bogie_rear_right)",
+        ),
+        ("carbody_mass@bogie_front", "'carbody_mass' has no per-component form"),
+        (
+            "yaw_damper_damping@bogie_front_left",
+            "is a valid per-component name, but the rig calibrates it only with an entry of "
+            "its own: [[calibration.parameters]] name = 'yaw_damper_damping@bogie_front_left'",
+        ),
+        ("yaw_damper_dampng", "(did you mean 'yaw_damper_damping'?)"),
+    ],
+    ids=["component-typo", "no-component-form", "not-calibrated", "plain-typo"],
+)
+def test_a_study_parameter_outside_the_calibration_set_says_what_is_wrong(
+    name: str, hint: str
+) -> None:
+    # a misspelled per-component name got the generic "not in the calibration set" only
+    config = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"), parameters=(name,))
+    allowed = ("primary_vertical_stiffness", "yaw_damper_damping")
+    with pytest.raises(ValueError) as raised:
+        config.check_parameters(allowed)
+    message = str(raised.value)
+    assert message.startswith(f"parameters: [{name!r}] not in the calibration set")
+    assert hint in message
+    assert message.endswith(f"allowed: {list(allowed)}")
+
+
 def test_a_study_file_that_is_not_text_is_named(tmp_path: Path) -> None:
     path = tmp_path / "study.toml"
     path.write_bytes(b"\xff\xfe\x00rig")

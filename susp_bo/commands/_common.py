@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 import math
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from susp_bo.cli import UsageError
 from susp_bo.data.measured import run_paths
 from susp_bo.output_folder import check_output_folder
+from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import SIMULATION_LIMITS
 from susp_bo.rig.toml_files import TomlFileError, read_toml
 
@@ -32,6 +33,11 @@ def read_parameter_file(path: str | Path, flag: str = "--params/--truth") -> dic
             is not a finite number.
     """
     file = Path(path)
+    if file.is_dir():
+        raise UsageError(
+            f"{flag}: {str(file)!r} is a folder; expected a TOML file of name = value lines "
+            "(e.g. yaw_damper_damping = 4.9e6)"
+        )
     if not file.is_file():
         raise UsageError(f"{flag}: file {str(file)!r} does not exist")
     try:
@@ -42,15 +48,85 @@ def read_parameter_file(path: str | Path, flag: str = "--params/--truth") -> dic
         raise UsageError(f"{flag}: cannot read {str(file)!r} ({error.strerror or error})") from None
     table = data.get("parameters", data)
     if not isinstance(table, Mapping):
-        raise UsageError(f"{file}: [parameters] must be a table of name = value")
+        raise UsageError(f"{flag} {file}: [parameters] must be a table of name = value")
     values: dict[str, float] = {}
     for name, value in table.items():
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise UsageError(f"{file}: parameter {name!r} = {value!r} is not a number")
+            raise UsageError(f"{flag} {file}: parameter {name!r} = {value!r} is not a number")
         if not math.isfinite(float(value)):
-            raise UsageError(f"{file}: parameter {name!r} = {value!r} is not finite")
+            raise UsageError(f"{flag} {file}: parameter {name!r} = {value!r} is not finite")
         values[str(name)] = float(value)
     return values
+
+
+def apply_parameter_file(
+    spec: RigSpec, values: Mapping[str, float], path: str | Path | None, flag: str
+) -> RigSpec:
+    """``spec`` with the values of a parameter file (``--params``/``--truth``) applied.
+
+    Every refusal names the flag and the file, the name or value and what is allowed:
+    an unknown name (with the closest known one and the rig's parameters by section), a
+    bad per-component name, a value that breaks the parameter's sign rule, or one
+    outside the rig's admissible interval.
+
+    Args:
+        spec: the rig.
+        values: the file's values (:func:`read_parameter_file`), name -> SI value.
+        path: the file, named in messages.
+        flag: the flag that gave it, e.g. ``--params``.
+
+    Raises:
+        UsageError: ``"--params p.toml: yaw_damper_damping = -5 is not allowed; …"``.
+    """
+    from susp_bo.rig.components import is_component_name, split_component_name
+    from susp_bo.rig.spec_entries import parameter_value_rule
+
+    where = f"{flag} {path}"
+    entries = {entry.name: entry for entry in spec.calibration}
+    for name, value in values.items():
+        if is_component_name(name):
+            try:
+                split_component_name(name, spec.parameters, spec.topology)
+            except ValueError as error:
+                raise UsageError(f"{where}: {error}") from None
+        elif name not in spec.parameters:
+            raise UsageError(
+                f"{where}: unknown parameter {name!r}{did_you_mean(name, spec.parameters)}; "
+                f"allowed: a named parameter of rig {spec.name!r} "
+                f"({parameters_by_section(spec.parameters)}), or <parameter>@<component> "
+                "for one component"
+            )
+        rule = parameter_value_rule(name, value)
+        if rule is not None:
+            raise UsageError(f"{where}: {name} = {value:g} is not allowed; {rule}")
+        entry = entries.get(name)
+        if entry is not None and not entry.lower <= value <= entry.upper:
+            unit = f" {entry.unit}" if entry.unit else ""
+            raise UsageError(
+                f"{where}: {name} = {value:g}{unit} is not allowed; allowed: the rig's "
+                f"admissible interval [{entry.lower:g}, {entry.upper:g}]{unit} (its "
+                "[[calibration.parameters]] entry)"
+            )
+    try:
+        return spec.with_parameters(values)
+    except ValueError as error:  # e.g. a bogie pivot spacing inside the wheelbase
+        raise UsageError(f"{where}: {error}") from None
+
+
+def parameters_by_section(names: Iterable[str]) -> str:
+    """The named parameters grouped by the rig file's section they come from, for a message:
+    ``[carbody] mass, cg_height; [bogie] mass; other: polygon_amplitude_m``."""
+    from susp_bo.rig.spec import PARAMETER_SECTIONS
+
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        sections = [s for s in PARAMETER_SECTIONS if name.startswith(f"{s}_")]
+        section = max(sections, key=len) if sections else ""
+        groups.setdefault(section, []).append(name[len(section) + 1 :] if section else name)
+    parts = [f"[{s}] {', '.join(keys)}" for s, keys in groups.items() if s]
+    if "" in groups:
+        parts.append(f"other: {', '.join(groups[''])}")
+    return "; ".join(parts)
 
 
 _ALLOWED_FOLDER = "expected a folder that exists or can be created, and can be written in"

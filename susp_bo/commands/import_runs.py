@@ -19,6 +19,41 @@ from susp_bo.cli import UsageError
 from susp_bo.commands._common import checked_output_folder, output_folder
 
 
+def refuse_ignored_speed(kind: str, inputs: list[str], speed: float) -> None:
+    """Refuses ``--speed`` for runs that carry their own speed, before any run is read.
+
+    ``--speed`` is the constant speed of CSV runs that have no speed record. A run with
+    one (a ``<run>_speed.csv``, a ``speed_m_s`` column, or any ``.mat`` file) would have
+    used one of the two speeds silently; a wrong speed shifts every spectrum of the run,
+    so the conflict is refused instead of guessed.
+
+    Raises:
+        UsageError: naming ``--speed``, its value, the run and the file with its own speed.
+    """
+    from susp_bo.data.collect import csv_groups, input_files
+    from susp_bo.data.importers import csv_columns
+
+    files = input_files(kind, inputs)  # type: ignore[arg-type]
+    fix = "drop --speed (each run's own speed is used)"
+    if kind == "mat":
+        raise UsageError(
+            f"--speed: {speed:g} m/s is not allowed with 'import mat': {files[0]} carries its "
+            f"own speed (variable speed_m_s, as every .mat run does); {fix}"
+        )
+    for name, group in csv_groups(files).items():
+        if "speed" in group:
+            own = f"{group['speed']} is its speed record"
+        elif "speed_m_s" in csv_columns(group["accelerations"]):
+            own = f"{group['accelerations']} has a speed_m_s column"
+        else:
+            continue
+        raise UsageError(
+            f"--speed: {speed:g} m/s is not allowed for run {name!r}: {own}; --speed is only "
+            f"for CSV runs without a speed of their own; {fix}, or import the runs without "
+            "one separately with --speed"
+        )
+
+
 def run_import(args: argparse.Namespace) -> int:
     """Convert, check and write the runs; returns the exit code."""
     from susp_bo.data.collect import read_runs
@@ -34,6 +69,8 @@ def run_import(args: argparse.Namespace) -> int:
             spec = load_rig_spec(args.rig)
         except (FileNotFoundError, ValueError) as error:
             raise UsageError(f"--rig: {error}") from None
+    if args.speed is not None:
+        refuse_ignored_speed(args.kind, args.inputs, args.speed)
     runs = read_runs(args.kind, args.inputs, speed_m_s=args.speed)
     checked = []
     for name, run in runs:  # read_runs gives them in m/s^2

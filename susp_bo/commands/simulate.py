@@ -10,6 +10,7 @@ import numpy as np
 
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
+    apply_parameter_file,
     checked_output_folder,
     diverged_message,
     listed,
@@ -58,10 +59,7 @@ def prepared_spec(args: argparse.Namespace) -> tuple[RigSpec, dict[str, float]]:
         ) from None
     parameters = read_parameter_file(args.params, "--params") if args.params else {}
     checked_output_folder(args.out)
-    try:
-        spec = spec.with_parameters(parameters)
-    except ValueError as error:
-        raise UsageError(str(error)) from error
+    spec = apply_parameter_file(spec, parameters, args.params, "--params")
     refuse_unstable_speed(spec, args, parameters, "--params")
     return spec, parameters
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import (
+    apply_parameter_file,
     checked_output_folder,
     diverged_message,
     existing_runs,
@@ -107,7 +108,7 @@ def run_synth(args: argparse.Namespace) -> int:
     try:
         spec = load_rig_spec(args.rig)
         truth = read_parameter_file(args.truth, "--truth") if args.truth else {}
-        spec.with_parameters(truth)
+        apply_parameter_file(spec, truth, args.truth, "--truth")
         for name, values in effects:  # the hidden physics: on in the generator only
             spec = with_effect(spec, name, values)
         if effects:

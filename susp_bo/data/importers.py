@@ -84,6 +84,20 @@ def _design(path: Path, **fields: Any) -> TrackDesign:
         raise MeasuredDataError(str(error)) from None
 
 
+def csv_columns(path: PathLike) -> list[str]:
+    """The column names of a CSV file (its first row that is not a comment), data unread.
+
+    Raises:
+        MeasuredDataError: the file cannot be read as CSV text.
+    """
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as handle:
+            rows = (r for r in csv.reader(handle) if r and not r[0].lstrip().startswith("#"))
+            return [name.strip() for name in next(rows, [])]
+    except (OSError, UnicodeError, csv.Error) as error:
+        raise MeasuredDataError(f"{path}: cannot read CSV ({error})") from None
+
+
 def _read_table(path: Path) -> tuple[list[str], np.ndarray]:
     """Header names and a float64 (rows x columns) table; empty cells are NaN."""
     try:
@@ -125,6 +139,26 @@ def _uniform_step(path: Path, name: str, values: np.ndarray) -> float:
             f"{steps.min():g} … {steps.max():g})"
         )
     return float(step)
+
+
+def _check_increasing(path: Path, name: str, values: np.ndarray, unit: str) -> None:
+    """MeasuredDataError unless column ``name`` is finite and strictly increasing, naming
+    the first offending data row and its value as written in the file (not shifted)."""
+    bad = ~np.isfinite(values)
+    if np.any(bad):
+        row = int(np.argmax(bad))
+        raise MeasuredDataError(
+            f"{path}: column {name!r}: data row {row + 1} is empty or not finite "
+            f"({values[row]:g}); expected finite times"
+        )
+    steps = np.diff(values)
+    if np.any(steps <= 0):
+        row = int(np.argmax(steps <= 0)) + 1
+        raise MeasuredDataError(
+            f"{path}: column {name!r} must be strictly increasing; data row {row + 1} has "
+            f"{name} = {values[row]:g} {unit}, not after data row {row} ({values[row - 1]:g} "
+            f"{unit})"
+        )
 
 
 def _split_unit(column: str) -> tuple[str, str]:
@@ -222,6 +256,7 @@ def read_csv_run(
                 f"{speed_path}: columns must be 'time_s', 'speed_m_s'; got {speed_header}"
             )
         speed_time = speed_table[:, speed_header.index("time_s")]
+        _check_increasing(speed_path, "time_s", speed_time, "s")  # the file's own times
         clock = speed_time[0] if speed_time.size else 0.0
         profile = _speed(
             speed_path, speed_time - clock, speed_table[:, speed_header.index("speed_m_s")]

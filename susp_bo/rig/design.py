@@ -36,6 +36,9 @@ Limits checked when a design is built (before any simulation):
   gauge (TSI INF, Reg. (EU) 1299/2014, 4.2.4.2, and EN 13803: 180 mm);
 * ``|gradient|`` ≤ :data:`MAX_GRADIENT` = 0.040 (40 ‰; TSI INF 4.2.3.3 allows up to
   35 ‰ on high-speed passenger lines);
+* chainage within ``±``:data:`MAX_LINE_LENGTH_M` = 20 000 km: the longest run the
+  simulation limits allow (200 m/s for 1e5 s); longer values are typos (``1e300``)
+  that would overflow the design's integrals;
 * unit slips are named: a cant above 1 m (a value in mm given as m), a
   curvature above 0.5 1/m (a radius given as a curvature), a gradient above 1
   (‰ or % given as a fraction).
@@ -50,6 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from susp_bo.rig._array_checks import as_finite_vector
+from susp_bo.rig.spec_entries import SIMULATION_LIMITS
 
 FloatArray = NDArray[np.float64]
 GRAVITY_M_S2 = 9.81
@@ -57,6 +61,9 @@ RAIL_CENTRES_M = 1.5  # e0: distance between the rail centres, standard gauge (D
 MIN_RADIUS_M = 150.0
 MAX_CANT_M = 0.180
 MAX_GRADIENT = 0.040
+MAX_LINE_LENGTH_M = (
+    SIMULATION_LIMITS["speed_m_s"][1] * SIMULATION_LIMITS["duration_s"][1]
+)  # 2e7 m: the longest run the [simulation] limits allow
 DESIGN_COMPONENTS = ("curvature_1_m", "cant_m", "gradient")
 DESIGN_UNITS = {"chainage_m": "m", "curvature_1_m": "1/m", "cant_m": "m", "gradient": "1"}
 
@@ -152,6 +159,14 @@ class TrackDesign:
                 raise DesignError(
                     f"{where}.{name}: has {array.size} values but chainage_m has {chainage.size}"
                 )
+        too_far = np.abs(chainage) > MAX_LINE_LENGTH_M
+        if np.any(too_far):
+            i = int(np.argmax(too_far))
+            raise DesignError(
+                f"{where}.chainage_m: got {chainage[i]:g} m at knot {i}; the design must lie "
+                f"within ±{MAX_LINE_LENGTH_M:g} m (the longest run the [simulation] limits "
+                "allow)"
+            )
         steps = np.diff(chainage)
         if np.any(steps < 0):
             i = int(np.argmax(steps < 0))

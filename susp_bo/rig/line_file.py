@@ -25,7 +25,8 @@ Example (``--line FILE`` of ``susp-bo simulate`` / ``susp-bo synth``)::
 The first segment starts at chainage 0, the first sample of the track geometry.
 A ``transition`` needs a segment on each side. Keys are checked by name and
 unit before anything runs: unknown keys, a cant given in m under ``cant_mm``
-(below 1), a radius below 150 m, a cant above 180 mm, … are refused with the
+(below 1), a radius below 150 m, a cant above 180 mm, a length above 2e7 m
+(:data:`~susp_bo.rig.design.MAX_LINE_LENGTH_M`), … are refused with the
 file, the segment number, the value and what is allowed.
 """
 
@@ -38,7 +39,14 @@ from typing import Any
 
 import numpy as np
 
-from susp_bo.rig.design import MAX_CANT_M, MAX_GRADIENT, MIN_RADIUS_M, DesignError, TrackDesign
+from susp_bo.rig.design import (
+    MAX_CANT_M,
+    MAX_GRADIENT,
+    MAX_LINE_LENGTH_M,
+    MIN_RADIUS_M,
+    DesignError,
+    TrackDesign,
+)
 from susp_bo.rig.toml_files import TomlFileError, read_toml
 
 _KEYS = {
@@ -54,11 +62,22 @@ def _number(where: str, value: object, unit: str) -> float:
     return float(value)
 
 
-def _segment_state(where: str, segment: Mapping[str, Any]) -> tuple[float, float, float, float]:
-    """(length, curvature, signed cant, gradient) of a tangent or curve segment."""
+def _length(where: str, segment: Mapping[str, Any]) -> float:
+    """The segment's ``length_m``: a finite number in (0, MAX_LINE_LENGTH_M] m."""
     length = _number(f"{where}.length_m", segment.get("length_m"), "m")
     if length <= 0:
         raise DesignError(f"{where}.length_m: got {length:g} m; must be > 0 m")
+    if length > MAX_LINE_LENGTH_M:
+        raise DesignError(
+            f"{where}.length_m: got {length:g} m; above the maximum {MAX_LINE_LENGTH_M:g} m "
+            f"({MAX_LINE_LENGTH_M / 1000:g} km: the longest run the [simulation] limits allow)"
+        )
+    return length
+
+
+def _segment_state(where: str, segment: Mapping[str, Any]) -> tuple[float, float, float, float]:
+    """(length, curvature, signed cant, gradient) of a tangent or curve segment."""
+    length = _length(where, segment)
     gradient = _number(
         f"{where}.gradient_permille", segment.get("gradient_permille", 0.0), "per mille"
     )
@@ -131,9 +150,7 @@ def design_from_segments(segments: list[Mapping[str, Any]], source: str = "line"
                 f"{where}: unknown key(s) {unknown} for a {kind}; allowed {sorted(_KEYS[kind])}"
             )
         if kind == "transition":
-            length = _number(f"{where}.length_m", segment.get("length_m"), "m")
-            if length <= 0:
-                raise DesignError(f"{where}.length_m: got {length:g} m; must be > 0 m")
+            length = _length(where, segment)
             if number in (1, len(segments)):
                 raise DesignError(
                     f"{where}: a transition ramps between its neighbours; it cannot be the "
@@ -145,6 +162,12 @@ def design_from_segments(segments: list[Mapping[str, Any]], source: str = "line"
             state = _segment_state(where, segment)
             states.append(state)
             lengths.append(state[0])
+        if sum(lengths) > MAX_LINE_LENGTH_M:
+            raise DesignError(
+                f"{where}: the line reaches {sum(lengths):g} m at its end; above the maximum "
+                f"{MAX_LINE_LENGTH_M:g} m ({MAX_LINE_LENGTH_M / 1000:g} km: the longest run the "
+                "[simulation] limits allow)"
+            )
     for number in range(1, len(states)):
         if states[number] is None and states[number - 1] is None:
             raise DesignError(f"{source}: segments {number} and {number + 1} are both transitions")

@@ -26,8 +26,9 @@ def require_number(where: str, value: object) -> float:
     return float(value)
 
 
-def check_parameter_value(name: str, value: float) -> None:
-    """Raise ValueError unless ``value`` is admissible for a parameter called ``name``.
+def parameter_value_rule(name: str, value: float) -> str | None:
+    """The sign rule ``value`` breaks for a parameter called ``name``, or None when it is
+    admissible: e.g. ``"must be >= 0 (a damping cannot be negative)"``.
 
     Rules by meaning: finite always; names containing mass, inertia, radius,
     coefficient, spacing, wheelbase or height (above the rail top) must be > 0;
@@ -35,13 +36,23 @@ def check_parameter_value(name: str, value: float) -> None:
     ``<parameter>@<component>`` follows the rule of its ``<parameter>``.
     """
     if not math.isfinite(value):
-        raise ValueError(f"parameter {name}: got {value}; must be finite")
+        return "must be finite"
     meaning = name.split("@", 1)[0]
-    if any(word in meaning for word in _POSITIVE_WORDS):
-        if value <= 0.0:
-            raise ValueError(f"parameter {name}: got {value}; must be > 0")
-    elif any(word in meaning for word in _NON_NEGATIVE_WORDS) and value < 0.0:
-        raise ValueError(f"parameter {name}: got {value}; must be >= 0")
+    for word in _POSITIVE_WORDS:  # first match wins
+        if word in meaning:
+            return None if value > 0.0 else f"must be > 0 (a {word} is positive)"
+    for word in _NON_NEGATIVE_WORDS:
+        if word in meaning:
+            return None if value >= 0.0 else f"must be >= 0 (a {word} cannot be negative)"
+    return None
+
+
+def check_parameter_value(name: str, value: float) -> None:
+    """Raise ValueError unless ``value`` is admissible for a parameter called ``name``
+    (the sign rules of :func:`parameter_value_rule`)."""
+    rule = parameter_value_rule(name, value)
+    if rule is not None:
+        raise ValueError(f"parameter {name}: got {value}; {rule}")
 
 
 @dataclass(frozen=True)

@@ -437,3 +437,74 @@ def test_a_toml_file_that_is_not_utf8_text_is_named(
     argv = [a.replace("{b}", str(binary)).replace("{o}", str(out)) for a in argv]
     _refused(capsys, argv, f"{prefix}{binary}: not a UTF-8 text file (byte 0xff at position 0")
     assert not out.exists()
+
+
+# --- --params / --truth files --------------------------------------------------------------
+
+PARAMETER_FLAGS = [("simulate", "--params"), ("synth", "--truth")]
+
+
+@pytest.mark.parametrize(("command", "flag"), PARAMETER_FLAGS)
+@pytest.mark.parametrize(
+    ("text", "needles"),
+    [
+        (
+            "yaw_damper_damping = -5.0\n",
+            ["yaw_damper_damping = -5 is not allowed; must be >= 0 (a damping cannot be negative)"],
+        ),
+        (
+            "yaw_damper_damping = 1.0\n",
+            ["yaw_damper_damping = 1 N·s/m is not allowed; allowed: the rig's admissible interval"],
+        ),
+        (
+            '"yaw_damper_damping@bogie_front_lef" = 4.0e6\n',
+            ["unknown component 'bogie_front_lef'", "(did you mean 'bogie_front_left'?)"],
+        ),
+    ],
+    ids=["negative", "outside-bounds", "component-typo"],
+)
+def test_a_bad_parameter_value_names_the_flag_and_the_file(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    command: str,
+    flag: str,
+    text: str,
+    needles: list[str],
+) -> None:
+    # the message named neither: "parameter yaw_damper_damping: got -5.0; must be >= 0"
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    out = tmp_path / "out"
+    err = _refused(capsys, [command, "hst_trailer", "--out", str(out), flag, str(path)], *needles)
+    assert f"susp-bo {command}: {flag} {path}: " in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("command", "flag"), PARAMETER_FLAGS)
+def test_an_unknown_parameter_name_gets_a_did_you_mean_and_a_list_by_section(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str, flag: str
+) -> None:
+    path = tmp_path / "p.toml"
+    path.write_text("yaw_damper_dampin = 4.9e6\n")
+    argv = [command, "hst_trailer", "--out", str(tmp_path / "out"), flag, str(path)]
+    err = _refused(
+        capsys,
+        argv,
+        f"{flag} {path}: unknown parameter 'yaw_damper_dampin' (did you mean "
+        "'yaw_damper_damping'?)",
+        "[yaw_damper] damping, series_stiffness",
+        "[carbody] mass, ",
+        "<parameter>@<component>",
+    )
+    assert "carbody_mass" not in err  # grouped by section, not 52 full names in a row
+
+
+@pytest.mark.parametrize(("command", "flag"), PARAMETER_FLAGS)
+def test_a_folder_given_as_parameter_file_is_called_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str, flag: str
+) -> None:
+    folder = tmp_path / "p.toml"
+    folder.mkdir()
+    argv = [command, "hst_trailer", "--out", str(tmp_path / "out"), flag, str(folder)]
+    err = _refused(capsys, argv, f"{flag}: {str(folder)!r} is a folder; expected a TOML file")
+    assert "does not exist" not in err

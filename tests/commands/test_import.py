@@ -213,6 +213,52 @@ def test_bad_paths_and_flags_are_named(tmp_path: Path, capsys: pytest.CaptureFix
     assert code == 2 and "--rig:" in err and RIG in err
 
 
+def test_speed_flag_for_runs_with_their_own_speed_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # --speed was silently ignored for a run with a speed file (and silently replaced a
+    # speed_m_s column); a run without a speed of its own still takes it
+    source = tmp_path / "csv"
+    _csv(source, "a", _run(0, track_m=400.0))  # 30 m/s for 10 s: 300 m + the axle span
+    out = tmp_path / "h5"
+    argv = ["import", "csv", str(source), "--out", str(out), "--rig", RIG, "--speed", "30"]
+    code, err = _code_and_err(capsys, argv)
+    assert code == 2 and "Traceback" not in err, err
+    assert f"--speed: 30 m/s is not allowed for run 'a': {source / 'a_speed.csv'} is its " in err
+    assert "drop --speed" in err and not out.exists()
+
+    speed = np.loadtxt(source / "a_speed.csv", delimiter=",", skiprows=1)
+    (source / "a_speed.csv").unlink()
+    acc = source / "a_accelerations.csv"
+    lines = acc.read_text().splitlines()
+    times = [float(line.split(",")[0]) for line in lines[1:]]
+    column = np.interp(times, speed[:, 0], speed[:, 1])
+    acc.write_text(
+        "\n".join([f"{lines[0]},speed_m_s"] + [f"{row},{v}" for row, v in zip(lines[1:], column)])
+    )
+    code, err = _code_and_err(capsys, argv)
+    assert code == 2 and f"{acc} has a speed_m_s column" in err, err
+    assert main(argv[:-2]) == 0  # the column is the speed without --speed
+
+    acc.write_text("\n".join(lines) + "\n")  # no speed of its own: --speed is its speed
+    capsys.readouterr()
+    code, err = _code_and_err(capsys, [*argv[:4], str(tmp_path / "h5b"), *argv[5:]])
+    assert code == 0, err
+    (run,) = load_runs(tmp_path / "h5b")
+    assert run.speed.speed_at(1.0) == 30.0
+
+
+def test_speed_flag_is_refused_for_mat_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "r.mat"
+    write_mat_run(_run(0), path)
+    argv = ["import", "mat", str(path), "--out", str(tmp_path / "o"), "--speed", "30"]
+    code, err = _code_and_err(capsys, argv)
+    assert code == 2 and "Traceback" not in err, err
+    assert f"--speed: 30 m/s is not allowed with 'import mat': {path} carries its own speed" in err
+
+
 def test_existing_runs_are_not_overwritten(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -73,6 +73,8 @@ def test_synth_writes_the_design_into_the_runs(
         ({"cant": 250.0}, "cant_mm: got 250 mm; above the allowed maximum 180 mm"),
         ({"cant": 0.15}, "suggests metres given as millimetres"),
         ({"curve": 100.0}, "covers 0 … 300 m but the run"),
+        # was a numpy overflow warning and exit 0
+        ({"curve": 1e300}, "segment 3.length_m: got 1e+300 m; above the maximum 2e+07 m"),
     ],
 )
 def test_bad_lines_are_refused_before_simulating(
@@ -87,5 +89,5 @@ def test_bad_lines_are_refused_before_simulating(
     assert main([command, "hst_trailer", "--out", str(out), "--line", str(path)]) == 2
     error = capsys.readouterr().err
     assert message in error and str(path) in error
-    assert "Traceback" not in error
+    assert "Traceback" not in error and "RuntimeWarning" not in error
     assert not out.exists()

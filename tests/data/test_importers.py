@@ -128,6 +128,22 @@ def test_csv_geometry_and_speed_file_errors(tmp_path: Path) -> None:
         read_csv_run(tmp_path / "absent.csv", geo, speed=80.0)
 
 
+def test_an_out_of_order_speed_file_is_reported_with_its_own_times(tmp_path: Path) -> None:
+    # the times were reported shifted to the record's start (time_s[1] = -9.0 s)
+    acc = _write(tmp_path / "acc.csv", "time_s,a\n9,1\n9.01,2\n9.02,3\n")
+    geo = _geometry_csv(tmp_path / "geo.csv")
+    speed = _write(tmp_path / "speed.csv", "time_s,speed_m_s\n9.0,83.33\n0.0,83.33\n")
+    with pytest.raises(MeasuredDataError) as error:
+        read_csv_run(acc, geo, speed=speed)
+    message = str(error.value)
+    assert message.startswith(f"{speed}: column 'time_s' must be strictly increasing")
+    assert "data row 2 has time_s = 0 s, not after data row 1 (9 s)" in message
+    assert "-9" not in message[len(str(speed)) :]
+    speed = _write(tmp_path / "gap.csv", "time_s,speed_m_s\n0,80\n,80\n2,80\n")
+    with pytest.raises(MeasuredDataError, match=r"gap\.csv: column 'time_s': data row 2 is empty"):
+        read_csv_run(acc, geo, speed=speed)
+
+
 def test_mat_round_trip(small_run: MeasuredRun, tmp_path: Path) -> None:
     path = tmp_path / "run.mat"
     write_mat_run(small_run, path)

@@ -111,6 +111,7 @@ def test_a_curve_without_transition_is_a_step() -> None:
         ({"cant_m": 0.1}, "cant_mm"),
         ({"radius": 3000.0}, "unknown key"),
         ({"length_m": -5.0}, "must be > 0 m"),
+        ({"length_m": 1e300}, r"length_m: got 1e\+300 m; above the maximum 2e\+07 m"),
     ],
 )
 def test_bad_segments_are_refused_with_the_value_and_the_limit(
@@ -133,6 +134,23 @@ def test_sampled_records_are_checked_for_unit_slips_and_limits() -> None:
         TrackDesign(s, np.array([0.0, 0.01]), np.zeros(2), np.zeros(2))
     with pytest.raises(DesignError, match="non-decreasing"):
         TrackDesign(np.array([0.0, 10.0, 5.0]), *(np.zeros(3),) * 3)
+
+
+def test_lines_longer_than_any_run_are_refused_without_overflow() -> None:
+    # a length of 1e300 m overflowed the design's integrals (numpy warnings, NaN lateral)
+    with np.errstate(all="raise"):
+        tangent = {"type": "tangent", "length_m": 1e300}
+        with pytest.raises(DesignError, match=r"line\.toml: segment 2\.length_m: got 1e\+300"):
+            design_from_segments([CURVE[0], tangent], source="line.toml")
+        transition = {"type": "transition", "length_m": 1e300}
+        with pytest.raises(DesignError, match=r"segment 2\.length_m: .*maximum 2e\+07 m"):
+            design_from_segments([CURVE[0], transition, CURVE[2]])
+        long = {"type": "tangent", "length_m": 1.5e7}
+        with pytest.raises(DesignError, match=r"segment 2: the line reaches 3e\+07 m at its end"):
+            design_from_segments([long, long])
+        with pytest.raises(DesignError, match=r"run\.h5\.chainage_m: got 1e\+300 m at knot 1"):
+            TrackDesign(np.array([0.0, 1e300]), *(np.zeros(2),) * 3, source="run.h5")
+        assert design_from_segments([{"type": "tangent", "length_m": 2e7}]).end_m == 2e7
 
 
 def test_a_design_that_does_not_cover_the_run_is_refused() -> None:
