@@ -20,7 +20,7 @@ from susp_bo.commands._common import (
     refuse_unstable_speed,
 )
 from susp_bo.data.measured import save_run
-from susp_bo.data.synthetic import synthesize_runs
+from susp_bo.data.synthetic import MAX_NOISE_M_S2, MAX_RUNS, synthesize_runs
 from susp_bo.discrepancy.effects import with_effect
 from susp_bo.json_files import write_json
 from susp_bo.rig.assembly import build_assembly
@@ -115,10 +115,10 @@ def run_synth(args: argparse.Namespace) -> int:
             build_assembly(spec.with_parameters(truth))  # effect values checked before any run
     except (FileNotFoundError, ValueError) as error:
         raise UsageError(str(error)) from error
-    if args.nu < 1:
-        raise UsageError(f"--nu: got {args.nu}; expected an integer >= 1")
-    if args.noise < 0:
-        raise UsageError(f"--noise: got {args.noise}; expected >= 0 m/s^2")
+    if not 1 <= args.nu <= MAX_RUNS:
+        raise UsageError(f"--nu: got {args.nu}; expected an integer in 1 … {MAX_RUNS}")
+    if not 0 <= args.noise <= MAX_NOISE_M_S2:
+        raise UsageError(f"--noise: got {args.noise:g}; expected 0 … {MAX_NOISE_M_S2:g} m/s^2")
     if args.speed is not None:
         try:
             spec.with_simulation(speed_m_s=args.speed)

@@ -29,20 +29,32 @@ def track_seed(seed: int, run_index: int) -> int:
     return int(np.random.SeedSequence([seed, run_index, 1]).generate_state(1)[0])
 
 
+MAX_RUNS = 1000
+"""Most runs one synthesis makes: a measurement campaign has a handful, and each run is a
+full PyBullet simulation (≈ 1 s), so more is a typo (outside probe, session 29: 100 000)."""
+MAX_NOISE_M_S2 = 100.0
+"""Largest sensor noise (m/s² rms, ≈ 10 g): ten times a bogie's own accelerations, so the
+spectra would show nothing but noise (the probe: 1e9 was accepted)."""
+
+
 def check_synthesis(nu: object, seed: object, noise_m_s2: object) -> None:
     """Refuse what :func:`synthesize_runs` cannot synthesise, before any simulation.
 
     Raises:
-        ValueError: ``nu`` not an integer >= 1, ``seed`` not an integer >= 0, or
-            ``noise_m_s2`` not a finite real >= 0 (m/s²), naming the argument and value.
+        ValueError: ``nu`` not an integer in 1 … :data:`MAX_RUNS`, ``seed`` not an integer
+            >= 0, or ``noise_m_s2`` not a finite real in 0 … :data:`MAX_NOISE_M_S2` (m/s²),
+            naming the argument and value.
     """
-    if isinstance(nu, bool) or not isinstance(nu, int) or nu < 1:
-        raise ValueError(f"nu: got {nu!r}; expected an integer >= 1")
+    if isinstance(nu, bool) or not isinstance(nu, int) or not 1 <= nu <= MAX_RUNS:
+        raise ValueError(f"nu: got {nu!r}; expected an integer in 1 … {MAX_RUNS}")
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise ValueError(f"seed: got {seed!r}; expected an integer >= 0")
     real = isinstance(noise_m_s2, numbers.Real) and not isinstance(noise_m_s2, bool)
-    if not (real and math.isfinite(noise_m_s2) and noise_m_s2 >= 0.0):
-        raise ValueError(f"noise_m_s2: got {noise_m_s2!r}; expected a finite value >= 0 m/s^2")
+    if not (real and math.isfinite(noise_m_s2) and 0.0 <= noise_m_s2 <= MAX_NOISE_M_S2):
+        raise ValueError(
+            f"noise_m_s2: got {noise_m_s2!r}; expected a finite value in 0 … "
+            f"{MAX_NOISE_M_S2:g} m/s^2"
+        )
 
 
 def synthesize_runs(

@@ -70,6 +70,9 @@ def test_same_seed_same_runs(tmp_path: Path) -> None:
         (["--nu", "0"], "--nu"),
         (["--noise", "-1"], "--noise"),
         (["--speed", "0"], "--speed"),
+        # session 29's probe: no upper limit, and 100 000 runs started
+        (["--nu", "100000"], "--nu: got 100000; expected an integer in 1 … 1000"),
+        (["--noise", "1e9"], "--noise: got 1e+09; expected 0 … 100 m/s^2"),
     ],
 )
 def test_bad_input_is_refused_before_simulating(

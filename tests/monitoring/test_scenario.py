@@ -63,9 +63,11 @@ def written(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
             r"dates: 3 given for n_campaigns = 2; expected one date per",
         ),
         ({"final": 1.0e9}, r"final: parameter secondary_vertical_damping: got 1000000000.0"),
-        ({"nu": 0}, r"nu: got 0; expected an integer >= 1"),
+        ({"nu": 0}, r"nu: got 0; expected an integer in 1 … 1000"),
+        ({"nu": 100_000}, r"nu: got 100000; expected an integer in 1 … 1000"),  # probe, s. 29
         ({"seed": -1}, r"seed: got -1; expected an integer >= 0"),
-        ({"noise_m_s2": float("nan")}, r"noise_m_s2: got nan; expected a finite value >= 0"),
+        ({"noise_m_s2": float("nan")}, r"noise_m_s2: got nan; expected a finite value in 0 … 100"),
+        ({"noise_m_s2": 1e9}, r"noise_m_s2: got 1000000000\.0; expected a finite value in 0"),
     ],
 )
 def test_write_scenario_refuses_inconsistent_arguments_before_writing(
