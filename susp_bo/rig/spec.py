@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from susp_bo.rig.catalog import rig_path
 from susp_bo.rig.components import is_component_name, split_component_name
-from susp_bo.rig.schema import check_rig_keys, repeated, repeated_phrase
+from susp_bo.rig.schema import check_rig_keys, did_you_mean, repeated, repeated_phrase
 from susp_bo.rig.spec_entries import (
     SIMULATION_LIMITS,
     CalibrationParameter,
@@ -232,7 +232,8 @@ class RigSpec:
                 split_component_name(key, params, self.topology)
             elif key not in params:
                 raise ValueError(
-                    f"rig {self.name!r}: unknown parameter {key!r}; known parameters: "
+                    f"rig {self.name!r}: unknown parameter {key!r}"
+                    f"{did_you_mean(str(key), params)}; known parameters: "
                     f"{', '.join(sorted(params))}"
                 )
             params[key] = require_number(f"parameter {key}", value)

@@ -54,7 +54,11 @@ def test_channels_cover_carbody_and_bogies_vertical_and_lateral(reference_spec: 
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"primary_vertical_stifness": 1e6}, "unknown parameter 'primary_vertical_stifness'"),
+        (
+            {"primary_vertical_stifness": 1e6},
+            "unknown parameter 'primary_vertical_stifness' (did you mean "
+            "'primary_vertical_stiffness'.); known parameters: ",
+        ),
         ({"carbody_mass": -1.0}, "carbody_mass: got -1.0; must be > 0"),
         ({"secondary_lateral_stiffness": -5.0}, "must be >= 0"),
         ({"primary_vertical_damping": math.nan}, "must be finite"),
