@@ -79,7 +79,7 @@ class MonitorError(ValueError):
     """A monitoring run that cannot start: bad folder, settings or campaign."""
 
 
-ARGUMENTS = ("rig", "parameters", "budget", "warm_budget", "workers", "scheduler")
+ARGUMENTS = ("rig", "parameters", "budget", "warm_budget", "workers", "scheduler", "out")
 API_NAMES = {name: name for name in ARGUMENTS}
 """How errors name the arguments of :func:`monitor` called from Python (its keywords)."""
 CLI_NAMES = {name: "--" + name.replace("_", "-") for name in ARGUMENTS}
@@ -270,9 +270,9 @@ def monitor(
             when that calibration was trusted (:func:`~susp_bo.monitoring.warm_start.
             plan_warm_start`: the design moves, the prior stays C_w); False = every
             campaign from the space-filling design.
-        argument_names: how errors name ``rig``, ``parameters``, ``budget``, ``workers``
-            and ``scheduler``: :data:`API_NAMES` (the keywords) or :data:`CLI_NAMES` (the
-            flags of ``susp-bo monitor``).
+        argument_names: how errors name ``rig``, ``parameters``, ``budget``,
+            ``warm_budget``, ``workers``, ``scheduler`` and ``out``: :data:`API_NAMES` (the
+            keywords) or :data:`CLI_NAMES` (the flags of ``susp-bo monitor``).
 
     Returns:
         The ``monitor.json`` payload.
@@ -324,9 +324,8 @@ def monitor(
             raise MonitorError(problem)
     _refuse_orphaned_results(folder, out, [configs[c.campaign_id].out for c in campaigns])
     try:  # monitor.json or a trend figure blocked by a folder: said now, not after every campaign
-        label = "--out" if argument_names["budget"].startswith("--") else "out"
         trends = tuple(f"trend_{n}.png" for n in names) if figures else ()
-        check_output_files(out, (MONITOR_NAME, *trends), label)
+        check_output_files(out, (MONITOR_NAME, *trends), argument_names["out"])
     except ValueError as error:
         raise MonitorError(str(error)) from None
     bounds: dict[str, np.ndarray] = {}  # C_w of every campaign still to calibrate
