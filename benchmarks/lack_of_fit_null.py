@@ -55,6 +55,22 @@ def fitted(
     return w
 
 
+def parse_cases(
+    parser: argparse.ArgumentParser, cases: list[str]
+) -> list[tuple[str, int, int, float]]:
+    """``change:seed:runs:noise`` strings as tuples; a bad one is refused through ``parser``
+    (exit 2, naming it and the changes of ``CHANGES`` allowed)."""
+    parsed = []
+    for case in cases:
+        parts = case.split(":")
+        if len(parts) != 4 or parts[0] not in CHANGES:
+            parser.error(
+                f"cases: {case!r}; expected change:seed:runs:noise, change one of {sorted(CHANGES)}"
+            )
+        parsed.append((parts[0], int(parts[1]), int(parts[2]), float(parts[3])))
+    return parsed
+
+
 def case_problem(
     spec: Any, kind: tuple | None, seed: int, runs: int, noise: float
 ) -> tuple[Any, StudyEvaluator]:
@@ -77,22 +93,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("cases", nargs="+", help="change:seed:runs:noise_m_s2")
     args = parser.parse_args(argv)
-    changes = dict(CHANGES) | {
-        "conicity_0.103": ("parameter", "contact_equivalent_conicity", 0.103),
-        "conicity_0.105": ("parameter", "contact_equivalent_conicity", 0.105),
-    }
-    parsed = []
-    for case in args.cases:
-        parts = case.split(":")
-        if len(parts) != 4 or parts[0] not in changes:
-            parser.error(
-                f"cases: {case!r}; expected change:seed:runs:noise, change one of {sorted(changes)}"
-            )
-        parsed.append((parts[0], int(parts[1]), int(parts[2]), float(parts[3])))
+    parsed = parse_cases(parser, args.cases)
     spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
     truth_w = np.array([WORN_TRUTH[n] for n in NAMES], dtype=np.float64)
     for change, seed, runs, noise in parsed:
-        problem, evaluator = case_problem(spec, changes[change], seed, runs, noise)
+        problem, evaluator = case_problem(spec, CHANGES[change], seed, runs, noise)
         y = problem.measured
         weights = pure_error_weights(y, evaluator.spectra(truth_w[None])[0])
         weighted = fitted(evaluator, y, truth_w, weights)

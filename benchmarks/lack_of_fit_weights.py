@@ -44,7 +44,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from lack_of_fit_null import case_problem, fitted
+from lack_of_fit_null import case_problem, fitted, parse_cases
 from misspecified_model import CHANGES, NAMES
 
 from susp_bo.calibration.lack_of_fit import (
@@ -79,14 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("cases", nargs="+", help="change:seed:runs:noise_m_s2")
     parser.add_argument("--at-truth", action="store_true", help="F at the truth, no fit")
     args = parser.parse_args(argv)
-    parsed = []
-    for case in args.cases:
-        parts = case.split(":")
-        if len(parts) != 4 or parts[0] not in CHANGES:
-            parser.error(
-                f"cases: {case!r}; expected change:seed:runs:noise, change one of {sorted(CHANGES)}"
-            )
-        parsed.append((parts[0], int(parts[1]), int(parts[2]), float(parts[3])))
+    parsed = parse_cases(parser, args.cases)
     spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
     truth_w = np.array([WORN_TRUTH[n] for n in NAMES], dtype=np.float64)
     print("case  F: equal weights | the rule's (gap 0) | gap 1 | gap 2 | gap 3", flush=True)
