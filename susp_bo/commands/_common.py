@@ -265,22 +265,6 @@ def out_of_range(flag: str, key: str, value: float) -> str:
     )
 
 
-def _values_phrase(spec: RigSpec, values: Mapping[str, float]) -> str:
-    """``a = 0.9 (outside the rig's admissible interval [0.05, 0.5]), b = 2``."""
-    bounds = {c.name: c for c in spec.calibration}
-    parts = []
-    for name, value in values.items():
-        entry = bounds.get(name)
-        outside = entry is not None and not entry.lower <= value <= entry.upper
-        note = (
-            f" (outside the rig's admissible interval [{entry.lower:g}, {entry.upper:g}])"
-            if outside and entry is not None
-            else ""
-        )
-        parts.append(f"{name} = {value:g}{note}")
-    return ", ".join(parts)
-
-
 def diverged_message(
     spec: RigSpec,
     failure: SimulationFailed,
@@ -305,7 +289,8 @@ def diverged_message(
     settings = spec.simulation
     if values:
         where = f"{flag} {path}"
-        what = f"with {_values_phrase(spec, values)}"
+        # (outside C_w is refused before the run: apply_parameter_file)
+        what = "with " + ", ".join(f"{name} = {value:g}" for name, value in values.items())
     else:
         where = str(rig if rig is not None else spec.name)
         what = "with the rig file's parameter values"
