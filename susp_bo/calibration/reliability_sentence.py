@@ -18,6 +18,15 @@ from typing import Any, Literal
 
 AdviceFor = Literal["python", "command_line"]
 
+KERNEL_ADVISED_REASONS = ("not_converged", "surrogate_misfit")
+"""First reasons a better surrogate could remove (:mod:`.kernel_advice`); the others
+(mixing, bounds, failures, the box, the model's own misfit) have remedies of their own."""
+ADDITIVE_GAIN_KEY = "additive_kernel_loo_gain"
+"""Evidence key: the additive kernel's leave-one-out gain over the Matérn, nats a point
+(:func:`.kernel_advice.additive_kernel_gain`; absent when not computed)."""
+ADDITIVE_GAIN_NATS = 0.1
+"""Gain at or above which the advice names the additive kernel instead of more budget."""
+
 COMMAND_LINE_ADVICE = {
     "budget_too_small": "rerun with --resume --budget {minimum} or more (the evaluations "
     "already made are reused)",
@@ -46,6 +55,10 @@ COMMAND_LINE_ADVICE = {
     "multimodal": "look at the pair plot; rerun with --resume --budget {more} so that the "
     "search refines every mode; modes that persist mean the data do not identify the "
     "parameters uniquely",
+    "additive_kernel": "a pairwise additive kernel predicts the evaluations better than the "
+    'default Matérn (leave-one-out, {gain:+.2f} nats a point): set [search] kernel = "auto" '
+    "(both kernels fitted, the better kept) and refine_optimism = 2 in study.toml, then "
+    "rerun with --resume --budget {more}",
 }
 """Advice for a study run from the command line (or ``run_study``): flags and study keys."""
 
@@ -76,6 +89,10 @@ PYTHON_ADVICE = {
     "narrowing the bounds will not avoid failures that strike anywhere), then rerun",
     "multimodal": "look at the pair plot; " + _MORE + " so that the search refines every "
     "mode; modes that persist mean the data do not identify the parameters uniquely",
+    "additive_kernel": "a pairwise additive kernel predicts the evaluations better than the "
+    "default Matérn (leave-one-out, {gain:+.2f} nats a point): rerun with "
+    'CalibrationSettings(surrogate=SurrogateSettings(kernel="auto"), refine_optimism=2.0, '
+    "max_evaluations={more}) (both kernels fitted, the better kept)",
 }
 """Advice for a caller of :func:`~susp_bo.calibration.loop.calibrate`: its settings."""
 
@@ -124,6 +141,11 @@ def sentence(
     code = "noisy" if noisy else "failed_scattered" if scattered else first["code"]
     if code == "not_converged" and first.get("posterior_width") is not None:
         code = "narrow" if "narrow" in table else code
+    if (
+        code in KERNEL_ADVISED_REASONS
+        and evidence.get(ADDITIVE_GAIN_KEY, -math.inf) >= ADDITIVE_GAIN_NATS
+    ):
+        code = "additive_kernel"  # the default kernel's structure is the problem
     if code == "poor_mixing" and evidence.get("sampler") == "hmc":
         code = "hmc_stuck"  # the caller forced HMC (outside probe, session 25)
     if code == "search_box_edge" and (
@@ -135,6 +157,7 @@ def sentence(
     advice = table.get(code, "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),
+        gain=evidence.get(ADDITIVE_GAIN_KEY, math.nan),
     )
     others = [r["code"] for r in reasons[1:]]
     also = f" (also: {', '.join(others)})" if others else ""

@@ -1,0 +1,91 @@
+"""Would the pairwise additive kernel have fitted this log L better? Advice, not a verdict.
+
+On a curved posterior — a banana chained over 5 dimensions, whose log L is a sum of terms
+in one or two parameters each — the default Matérn surrogate stays several nats too low
+in the banana's arms, the refinement never looks there, and the run ends ``not_trusted``
+(``not_converged``) with MMTV 0.13–0.16 against the exact posterior, where
+``SurrogateSettings(kernel="auto")`` with ``refine_optimism=2`` reaches 0.02–0.03 at the
+same budget (README, "What it achieves"; ``benchmarks/posterior_accuracy_results.md``).
+The default does not fit the additive kernel at every refit (about 4× the cost of each),
+so without this module a user on such a target is told "more budget", which refines the
+same wrong surrogate.
+
+When a run with the default kernel ends ``not_trusted`` for a surrogate reason
+(:data:`.reliability_sentence.KERNEL_ADVISED_REASONS`), :func:`additive_kernel_gain` fits
+the additive kernel once on the final surrogate's own training points, seed and settings
+(what ``kernel="auto"`` would have compared at that refit) and returns the difference of
+the two leave-one-out scores (:meth:`.surrogate.Surrogate.loo_log_score`: mean log
+predictive density of the best third of the evaluations, nats a point). The verdict is
+not changed; the gain goes into the evidence (``additive_kernel_loo_gain``) and, at or
+above :data:`.reliability_sentence.ADDITIVE_GAIN_NATS`, the sentence's advice names the
+kernel settings instead of "more budget" (:mod:`.reliability_sentence`). A trusted run,
+or one with another kernel, pays nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from susp_bo.calibration.loop_step import Laplace, fit_in_box
+from susp_bo.calibration.reliability import Reliability
+from susp_bo.calibration.reliability_sentence import ADDITIVE_GAIN_KEY, KERNEL_ADVISED_REASONS
+from susp_bo.calibration.settings import CalibrationSettings
+from susp_bo.calibration.surrogate import Surrogate
+
+
+def needs_kernel_advice(reliability: Reliability | None, settings: CalibrationSettings) -> bool:
+    """Whether the run used the default Matérn, is not trusted for a surrogate reason, and
+    its search reached the optimum.
+
+    A search that did not (``not_converged`` with an optimum gap, or ``below_expected_fit``:
+    the best point lies far below the fit the output error expects) needs budget first; a
+    leave-one-out score of a surrogate that is wrong everywhere says nothing about the
+    kernel (measured: the demo's problem at a budget of 60, 140–400 nats from the optimum,
+    gave gains 0.08–0.39).
+    """
+    if reliability is None or reliability.trusted or settings.surrogate.kernel != "matern":
+        return False
+    codes = {r["code"] for r in reliability.reasons}
+    far = "below_expected_fit" in codes or any(
+        "optimum_gap_nats" in r for r in reliability.reasons if r["code"] == "not_converged"
+    )
+    return not far and bool(codes & set(KERNEL_ADVISED_REASONS))
+
+
+def additive_kernel_gain(
+    x: np.ndarray,
+    y: np.ndarray,
+    box: np.ndarray,
+    settings: CalibrationSettings,
+    iteration: int,
+    final: Surrogate,
+    boxed: bool = False,
+    laplace: Laplace | None = None,
+) -> float:
+    """LOO score of the additive kernel minus ``final``'s, on ``final``'s training data.
+
+    Args:
+        x: (n x q) every evaluated point (physical units), as the final fit got them.
+        y: (n,) their log L (NaN for failures; imputed as the final fit imputes them).
+        box: (2 x q) the final fit's box; ``iteration``, ``boxed``, ``laplace``: the final
+            fit's (:func:`.loop_step.fit_in_box`), so that the two fits differ only by kernel.
+        settings: the run's settings (kernel "matern").
+        final: the run's final surrogate.
+
+    Returns:
+        Nats a point; > 0 when the additive kernel predicts held-out evaluations better.
+    """
+    additive = dataclasses.replace(
+        settings, surrogate=dataclasses.replace(settings.surrogate, kernel="additive_pairs")
+    )
+    fit = fit_in_box(x, y, box, additive, iteration, boxed, laplace)
+    return float(fit.loo_log_score() - final.loo_log_score())
+
+
+def with_kernel_gain(reliability: Reliability, gain: float) -> Reliability:
+    """``reliability`` with the gain in its evidence and its sentence worded again
+    (Python terms, as :func:`.reliability.assess` words it; a study rewords it)."""
+    evidence = dict(reliability.evidence) | {ADDITIVE_GAIN_KEY: gain}
+    return dataclasses.replace(reliability, evidence=evidence).worded_for("python")

@@ -1,0 +1,143 @@
+"""kernel_advice: the additive kernel's leave-one-out gain, and the advice it changes."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from susp_bo.calibration.kernel_advice import (
+    additive_kernel_gain,
+    needs_kernel_advice,
+    with_kernel_gain,
+)
+from susp_bo.calibration.loop import CalibrationSettings, calibrate
+from susp_bo.calibration.loop_step import fit_in_box
+from susp_bo.calibration.reliability import Reliability
+from susp_bo.calibration.reliability_sentence import ADDITIVE_GAIN_KEY, ADDITIVE_GAIN_NATS
+from susp_bo.calibration.surrogate import SurrogateSettings
+
+DIM = 3
+UNIT_BOX = np.array([[0.0] * DIM, [1.0] * DIM])
+
+
+def _chain(u: np.ndarray) -> np.ndarray:
+    """A banana chain (log L a sum of terms in one or two parameters), unit cube."""
+    x = 6.0 * (u - 0.5)
+    out = -0.5 * x[:, 0] ** 2
+    for i in range(1, x.shape[1]):
+        out = out - 0.5 * ((x[:, i] - 0.5 * x[:, i - 1] ** 2 + 1.0) / 0.5) ** 2
+    return out
+
+
+def _three_way(u: np.ndarray) -> np.ndarray:
+    """A log L no sum of pairwise terms can be: a radial power and a three-way product."""
+    x = 6.0 * (u - 0.5)
+    return -0.05 * np.sum(x**2, axis=1) ** 1.5 + 3.0 * np.sin(x[:, 0] * x[:, 1] * x[:, 2] / 3.0)
+
+
+def _gain(f, n: int, seed: int = 0) -> float:
+    u = np.random.default_rng(seed).random((n, DIM))
+    y = f(u)
+    settings = CalibrationSettings(seed=seed)
+    final = fit_in_box(u, y, UNIT_BOX, settings, 7)
+    return additive_kernel_gain(u, y, UNIT_BOX, settings, 7, final)
+
+
+def test_the_gain_tells_an_additive_log_l_from_one_with_three_way_terms() -> None:
+    chain, three_way = _gain(_chain, 60), _gain(_three_way, 60)
+    assert chain >= ADDITIVE_GAIN_NATS, chain
+    assert three_way < ADDITIVE_GAIN_NATS, three_way
+
+
+def _not_converged(**evidence: object) -> Reliability:
+    reason = {"code": "not_converged", "message": "the search had not converged"}
+    return Reliability(
+        "not_trusted", (reason,), evidence={"budget": 100, "minimum_budget": 40, **evidence}
+    ).worded_for("python")
+
+
+def test_only_a_default_kernel_run_untrusted_for_a_surrogate_reason_is_advised() -> None:
+    default, auto = (
+        CalibrationSettings(),
+        CalibrationSettings(surrogate=SurrogateSettings(kernel="auto")),
+    )
+    mixing = Reliability(
+        "not_trusted", ({"code": "poor_mixing", "message": "R-hat 1.2"},), evidence={}
+    )
+    assert needs_kernel_advice(_not_converged(), default)
+    far = Reliability(  # the search did not reach the optimum: budget first
+        "not_trusted",
+        ({"code": "not_converged", "message": "m", "optimum_gap_nats": 140.0},),
+    )
+    misfit = {"code": "surrogate_misfit", "message": "check"}
+    assert not needs_kernel_advice(far, default)
+    assert needs_kernel_advice(Reliability("not_trusted", (misfit,)), default)
+    below = {"code": "below_expected_fit", "message": "b"}
+    assert not needs_kernel_advice(Reliability("not_trusted", (misfit, below)), default)
+    assert not needs_kernel_advice(_not_converged(), auto)
+    assert not needs_kernel_advice(mixing, default)
+    assert not needs_kernel_advice(Reliability("trusted"), default)
+    assert not needs_kernel_advice(None, default)
+
+
+@pytest.mark.parametrize(
+    ("gain", "kernel_advised"), [(0.37, True), (ADDITIVE_GAIN_NATS, True), (0.05, False)]
+)
+def test_the_advice_names_the_kernel_only_above_the_gain(gain: float, kernel_advised: bool) -> None:
+    python = with_kernel_gain(_not_converged(), gain)
+    command_line = python.worded_for("command_line")
+    assert python.evidence[ADDITIVE_GAIN_KEY] == gain
+    assert python.verdict == "not_trusted"  # advice only: the verdict is the same
+    assert ('SurrogateSettings(kernel="auto"), refine_optimism=2.0' in python.sentence) == (
+        kernel_advised
+    )
+    assert ('[search] kernel = "auto"' in command_line.sentence) == kernel_advised
+    assert ("refine_optimism = 2 in study.toml" in command_line.sentence) == kernel_advised
+    if kernel_advised:
+        assert f"{gain:+.2f} nats a point" in python.sentence
+        assert "max_evaluations=200" in python.sentence
+        assert "--resume --budget 200" in command_line.sentence
+    else:
+        assert "max_evaluations=200" in python.sentence
+        assert "kernel" not in python.sentence
+
+
+def test_a_narrow_posterior_keeps_its_trust_region_advice() -> None:
+    narrow = replace(
+        _not_converged(),
+        reasons=({"code": "not_converged", "message": "m", "posterior_width": 0.004},),
+    )
+    advised = with_kernel_gain(narrow, 2.0)
+    assert "trust_region=True" in advised.sentence
+    assert "kernel" not in advised.sentence
+
+
+def _banana_target(w: np.ndarray) -> np.ndarray:
+    return _chain(np.atleast_2d(w))
+
+
+SMALL = CalibrationSettings(
+    max_evaluations=24, batch_size=3, mcmc_chains=8, mcmc_warmup=100, mcmc_samples=100,
+    candidate_count=64, check_points=0, allow_small_budget=True,
+)  # fmt: skip
+
+
+def test_calibrate_computes_the_gain_only_where_it_advises() -> None:
+    names = [f"w{i}" for i in range(DIM)]
+    default = calibrate(_banana_target, UNIT_BOX, names, SMALL, progress=False)
+    assert default.reliability is not None
+    assert default.reliability.verdict == "not_trusted"
+    assert any(r["code"] == "not_converged" for r in default.reliability.reasons)
+    gain = default.reliability.evidence[ADDITIVE_GAIN_KEY]
+    assert np.isfinite(gain)
+    auto = calibrate(
+        _banana_target,
+        UNIT_BOX,
+        names,
+        replace(SMALL, surrogate=SurrogateSettings(kernel="auto")),
+        progress=False,
+    )
+    assert auto.reliability is not None
+    assert ADDITIVE_GAIN_KEY not in auto.reliability.evidence
