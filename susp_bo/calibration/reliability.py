@@ -50,7 +50,9 @@ Rules (each a pure function of numbers, testable alone):
   :class:`~susp_bo.calibration.surrogate_check.SurrogateCheck`: GP sd and
   observation noise accounted for), with the direction the signs say
   (``overconfident``: log L higher than predicted, the real posterior is wider;
-  ``underconfident``: lower, narrower; ``mixed``: both, misplaced or misshapen).
+  ``underconfident``: lower, narrower; ``mixed``: both, misplaced or misshapen;
+  ``misplaced``: an error beyond 10 nats, outside the posterior's region, whatever its
+  sign).
 - ``surrogate_unchecked``: no held-out check ran (``check_points = 0`` or no
   budget left for it), or none of its simulations succeeded. Nothing then tests the
   surrogate posterior against the simulator, so the result is not trusted on the

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from susp_bo.calibration.surrogate_check import SurrogateCheck
+from susp_bo.calibration.surrogate_check import GROSS_NATS, SurrogateCheck
 
 Reason = dict[str, Any]
 """One reason: ``code`` (str), ``message`` (str, plain words) and the numbers behind it."""
@@ -250,16 +250,14 @@ def at_bound(
 # -- surrogate and sampler --------------------------------------------------------------------
 
 
-def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> Reason | None:
+def surrogate_misfit(check: SurrogateCheck | None) -> Reason | None:
     """``surrogate_misfit`` (check outside its band) or ``surrogate_unchecked`` (no check
     ran, or none of its simulations succeeded).
 
     Args:
-        check: the held-out check, None when none ran.
-        gross_nats: an error beyond this (nats) is called gross in the message: the point
-            lies outside the posterior's region altogether (a 95 % edge in 7-D sits about
-            7 nats below the maximum), so the surrogate posterior is misplaced rather than
-            merely too wide or too narrow.
+        check: the held-out check, None when none ran. Its verdict is the reason's
+            ``direction``; an error beyond :data:`.surrogate_check.GROSS_NATS` makes it
+            ``misplaced``, and the message then reads no width into the signs.
     """
     if check is None:
         return {
@@ -298,21 +296,24 @@ def surrogate_misfit(check: SurrogateCheck | None, gross_nats: float = 10.0) -> 
             "max_abs_error_nats": check.max_abs_error,
             "repeat_difference_nats": check.repeat_difference_json,
         }
+    misplaced = check.verdict == "misplaced"
     parts = []
     if above.any():
         parts.append(
-            f"{int(above.sum())} above the prediction (up to +{float(np.max(e[above])):.1f} nats: "
-            "the real posterior is wider there)"
+            f"{int(above.sum())} above the prediction (up to +{float(np.max(e[above])):.1f} nats"
+            + (")" if misplaced else ": the real posterior is wider there)")
         )
     if below.any():
         parts.append(
-            f"{int(below.sum())} below (down to {float(np.min(e[below])):.1f} nats: narrower there)"
+            f"{int(below.sum())} below (down to {float(np.min(e[below])):.1f} nats"
+            + (")" if misplaced else ": narrower there)")
         )
     gross = ""
-    if float(np.max(np.abs(e[check.outside]))) > gross_nats:
+    if misplaced:
         gross = (
-            f"; errors beyond {gross_nats:g} nats mean the surrogate posterior is misplaced or "
-            "grossly misshapen, not only too wide or too narrow"
+            f"; errors beyond {GROSS_NATS:g} nats mean the surrogate posterior is misplaced or "
+            "grossly misshapen: neither its width nor the direction it is off can be read "
+            "from them"
         )
     return {
         "code": "surrogate_misfit",

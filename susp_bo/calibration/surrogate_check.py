@@ -42,6 +42,14 @@ of the single largest error only, so an underconfident −2.3 nats hid two point
 1.8–1.9 nats above (overconfident) at the same edges. The checked points then join
 the data, so the final surrogate uses them.
 
+An error beyond :data:`GROSS_NATS` at a point outside the band makes the verdict
+``"misplaced"`` whatever the signs: such a point lies outside the posterior's region
+altogether (a 95 % edge in 7-D sits about 7 nats below the maximum), so the errors say
+that the surrogate posterior is in the wrong place or grossly misshapen, not which way its
+width is off. An outside probe (session 30, q = 8 per-axlebox dampers, paired) had every
+point 10–126 nats below the prediction, "underconfident" ("narrower there"), on a reported
+posterior up to 6× *narrower* than the exact one and 45 sd from the truth.
+
 The direction assumes a repeatable log L. A noisy one, modelled without noise, scatters
 the checked values around the truth and misleads it: with 2 nats of noise the reported
 posterior was half as wide as the exact one and the check said "underconfident" (outside
@@ -64,7 +72,9 @@ from scipy.stats import chi2
 
 from susp_bo.calibration.surrogate import Surrogate
 
-Verdict = Literal["ok", "overconfident", "underconfident", "mixed", "noisy"]
+Verdict = Literal["ok", "overconfident", "underconfident", "mixed", "misplaced", "noisy"]
+GROSS_NATS = 10.0
+"""An error (nats) beyond which a point outside the band makes the verdict "misplaced"."""
 REPEAT_TOLERANCE_NATS = 0.1
 """A repeat evaluation that moves by more than this (nats) shows a noisy log L."""
 REPEATS = 2
@@ -157,6 +167,8 @@ class SurrogateCheck:
             return "ok"
         if self.noisy:
             return "noisy"
+        if float(np.max(np.abs(e))) > GROSS_NATS:
+            return "misplaced"
         if np.all(e > 0):
             return "overconfident"
         if np.all(e < 0):

@@ -213,9 +213,17 @@ def test_check_direction_matches_the_signs() -> None:
     assert _check([2.5], sd=0.1, noise=1.0).verdict == "ok"
     assert _check([1.2], sd=0.01).verdict == "overconfident"
     assert "misplaced" not in reason["message"]
+    # errors beyond GROSS_NATS: the points lie outside the posterior's region, so no width
+    # is read from their signs (outside probe, session 30: "underconfident" on a reported
+    # posterior 6x too narrow and 45 sd from the truth)
     gross = surrogate_misfit(_check([-163.0, -40.0]))
-    assert gross is not None and gross["direction"] == "underconfident"
-    assert "misplaced" in gross["message"]
+    assert gross is not None and gross["direction"] == "misplaced"
+    assert "misplaced" in gross["message"] and "narrower there" not in gross["message"]
+    assert _check([-10.5, -2.0]).verdict == "misplaced"
+    assert _check([10.5, 2.0]).verdict == "misplaced"
+    assert _check([-9.5, -2.0]).verdict == "underconfident"  # at most GROSS_NATS: a width
+    noisy_and_gross = replace(_check([-40.0, -2.0]), repeat_difference_nats=3.0)
+    assert noisy_and_gross.verdict == "noisy"  # noise first: then nothing can be read
     assert surrogate_misfit(_check([0.5, -0.5])) is None
     unchecked = surrogate_misfit(None)
     assert unchecked is not None and unchecked["code"] == "surrogate_unchecked"

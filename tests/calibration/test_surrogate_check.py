@@ -142,7 +142,8 @@ def test_edge_points_are_distinct_when_draws_repeat_and_rounds_go_inward() -> No
 
 
 def _failed_check(observed: np.ndarray) -> SurrogateCheck:
-    """Three of four points 8–17 nats below a confident prediction: "underconfident"."""
+    """Three of four points 7–9.5 nats below a confident prediction: "underconfident" (beyond
+    GROSS_NATS it would be "misplaced")."""
     return SurrogateCheck(
         points_unit=np.full((4, 1), 0.5),
         predicted=np.zeros(4),
@@ -161,7 +162,7 @@ def test_a_failed_check_on_a_noisy_log_l_says_noisy_not_a_direction() -> None:
     from susp_bo.calibration.reliability import surrogate_misfit
     from susp_bo.calibration.reliability_sentence import sentence
 
-    first = np.array([-8.0, -17.0, -0.3, -12.0])
+    first = np.array([-8.0, -9.5, -0.3, -7.0])
     points = np.array([[0.1], [0.2], [0.3], [0.4]])
     rng = np.random.default_rng(0)
     noisy = repeated_check(_failed_check(first), lambda w: rng.normal(-10, 2, len(w)), points)
@@ -177,7 +178,7 @@ def test_a_failed_check_on_a_noisy_log_l_says_noisy_not_a_direction() -> None:
     led = sentence((leading, reason), {"budget": 200}, "python")
     assert led.startswith("Not trusted: m (also: surrogate_misfit); let the surrogate learn")
 
-    values = {0.1: -8.0, 0.2: -17.0, 0.3: -0.3, 0.4: -12.0}  # a repeatable log L
+    values = {0.1: -8.0, 0.2: -9.5, 0.3: -0.3, 0.4: -7.0}  # a repeatable log L
     steady = repeated_check(
         _failed_check(first), lambda w: np.array([values[float(v)] for v in w[:, 0]]), points
     )
@@ -194,7 +195,7 @@ def test_noise_the_surrogate_models_is_not_called_noisy_and_a_failed_repeat_is()
         points_unit=np.full((4, 1), 0.5),
         predicted=np.zeros(4),
         predicted_sd=np.full(4, 0.2),
-        observed=np.array([-8.0, -17.0, -0.3, -12.0]),
+        observed=np.array([-8.0, -9.5, -0.3, -7.0]),
         tolerance_nats=1.0,
         noise_sd=1.0,
         repeat_difference_nats=1.5,
@@ -210,7 +211,7 @@ def test_noise_the_surrogate_models_is_not_called_noisy_and_a_failed_repeat_is()
 def test_a_repeat_that_fails_makes_the_check_noisy() -> None:
     from susp_bo.calibration.loop_step import repeated_check
 
-    check = _failed_check(np.array([-8.0, -17.0, -0.3, -12.0]))
+    check = _failed_check(np.array([-8.0, -9.5, -0.3, -7.0]))
     points = np.array([[0.1], [0.2], [0.3], [0.4]])
     repeated = repeated_check(check, lambda w: np.full(len(w), np.nan), points)
     assert repeated.verdict == "noisy" and math.isinf(repeated.repeat_difference_nats)
