@@ -121,10 +121,14 @@ def sentence(
     disagreeing)."""
     if not reasons:
         gap = float(evidence.get("optimum_gap_nats", math.nan))
-        where = "above" if gap < 0 else "below"
+        where = (  # a gap that prints as 0.00 has no side (outside probe, session 30)
+            "at the surrogate's predicted maximum (within 0.005 nats)"
+            if abs(gap) < 0.005
+            else f"{abs(gap):.2f} nats {'above' if gap < 0 else 'below'} the surrogate's "
+            "predicted maximum"
+        )
         return (
-            f"Trusted: the search converged (best log L {abs(gap):.2f} nats {where} the "
-            "surrogate's predicted maximum), "
+            f"Trusted: the search converged (best log L {where}), "
             f"the held-out check agreed at {evidence.get('check_points', 0)} posterior-edge "
             f"points and the MCMC mixed ({'HMC, ' if evidence.get('sampler') == 'hmc' else ''}"
             f"R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "

@@ -13,6 +13,11 @@ def test_trusted_sentence_names_hmc_when_its_draws_were_assessed() -> None:
     assert walk.startswith("Trusted: the search converged (best log L 0.40 nats below")
     assert "the MCMC mixed (R-hat <= 1.012, ESS >= 900)" in walk
     assert "the MCMC mixed (HMC, R-hat <= 1.012, ESS >= 900)" in hmc
+    above = sentence((), {**evidence, "optimum_gap_nats": -0.02}, "python")
+    assert "best log L 0.02 nats above the surrogate's predicted maximum)" in above
+    for tiny in (0.004, -0.001, 0.0):  # "0.00 nats above" had a side it could not show
+        level = sentence((), {**evidence, "optimum_gap_nats": tiny}, "python")
+        assert "(best log L at the surrogate's predicted maximum (within 0.005 nats))" in level
 
 
 def test_not_trusted_sentence_gives_the_first_reason_its_advice_and_the_others() -> None:
