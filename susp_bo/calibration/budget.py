@@ -33,12 +33,15 @@ class BudgetRequirement:
         design: design points needed: max(configured design, max(10, 5 q)).
         batch: one refinement batch (``batch_size``).
         check: held-out check points (``check_points``).
+        configured: the configured design size (None: the default), which the loop runs
+            even when it is smaller than q needs; :meth:`describe` then says so.
     """
 
     q: int
     design: int
     batch: int
     check: int
+    configured: int | None = None
 
     @property
     def minimum(self) -> int:
@@ -48,9 +51,17 @@ class BudgetRequirement:
     def describe(self) -> str:
         """'56 for q = 7 parameters (a design of 40 + one refinement batch of 8 + ...)'."""
         check = f" + {self.check} check points" if self.check else ""
+        smaller = ""
+        if self.configured is not None and 0 < self.configured < self.design:
+            # the loop runs the configured design; the minimum still counts what q needs
+            # (outside probe, session 30: "a design of 45" named where 40 ran)
+            smaller = (
+                f"; the configured design of {self.configured} points, which the run uses, "
+                f"is smaller than the {self.design} that q = {self.q} needs"
+            )
         return (
             f"{self.minimum} for q = {self.q} parameters (a design of {self.design}"
-            f" + one refinement batch of {self.batch}{check})"
+            f" + one refinement batch of {self.batch}{check}{smaller})"
         )
 
 
@@ -66,7 +77,8 @@ def budget_requirement(
         check_points: held-out check points.
     """
     design = max(int(initial_design or 0), default_design_size(q))
-    return BudgetRequirement(int(q), design, int(batch_size), int(check_points))
+    configured = None if initial_design is None else int(initial_design)
+    return BudgetRequirement(int(q), design, int(batch_size), int(check_points), configured)
 
 
 def budget_message(
@@ -123,4 +135,6 @@ def design_for_budget(config: StudyConfig, budget: int) -> int:
     q = calibrated_count(config)
     room = budget - b.batch_size - b.check_points
     floor = default_design_size(q) if q is not None else 2
-    return max(2, min(b.initial_design, max(room, floor), budget))
+    # not below q's floor even when the config's design is (q >= 9 with the default 40:
+    # the refusal named a design of 45 and the run spent 40; outside probe, session 30)
+    return max(2, min(max(b.initial_design, floor), max(room, floor), budget))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from susp_bo.calibration.budget import budget_message, budget_requirement, budget_too_small
 
 
@@ -15,8 +17,47 @@ def test_budget_minimum_follows_the_loop_structure() -> None:
     reason = budget_too_small(40, cli)
     assert reason is not None and reason["minimum"] == 56 and "40" in reason["message"]
     assert budget_too_small(56, cli) is None
-    # a configured design smaller than q needs does not lower the minimum
-    assert budget_requirement(7, 3, 8, 8).minimum == 51
+    # a configured design smaller than q needs does not lower the minimum, and the words
+    # say that the smaller design is what runs (the loop honours a configured size)
+    small = budget_requirement(7, 3, 8, 8)
+    assert small.minimum == 51
+    assert (
+        "the configured design of 3 points, which the run uses, is smaller than the 35 that "
+        "q = 7 needs" in small.describe()
+    )
+    assert "configured" not in cli.describe() and "configured" not in loop.describe()
+
+
+def test_the_command_lines_design_never_falls_below_what_q_needs(tmp_path: Path) -> None:
+    """q = 9 with the config's design of 40: the refusal named a design of 45 (5 q) while the
+    run spent 40 (outside probe, session 30); the command line's design is now 45, and the
+    minimum a refusal names is again the budget that runs."""
+    from susp_bo.calibration.budget import calibrated_count, design_for_budget
+    from susp_bo.rig.catalog import rig_path
+    from susp_bo.study_config import StudyConfig
+
+    rig = tmp_path / "nine.toml"  # the shipped rig with two per-side yaw dampers: q = 9
+    extra = "".join(
+        f"""
+[[calibration.parameters]]
+name = "yaw_damper_damping@{side}"
+lower = 0.5e6
+upper = 8.0e6
+unit = "N·s/m"
+"""
+        for side in ("bogie_front_left", "bogie_front_right")
+    )
+    rig.write_text(rig_path("hst_trailer").read_text(encoding="utf-8") + extra, encoding="utf-8")
+    config = StudyConfig(rig=str(rig), data=Path("."), out=Path("out"))
+    assert calibrated_count(config) == 9 and config.budget.initial_design == 40
+    design = design_for_budget(config, 200)
+    assert design == 45
+    b = config.budget
+    requirement = budget_requirement(9, design, b.batch_size, b.check_points)
+    assert requirement.design == design and "configured" not in requirement.describe()
+    seven = StudyConfig(rig="hst_trailer", data=Path("."), out=Path("out"))
+    assert design_for_budget(seven, 200) == 40  # the demo's q = 7: unchanged
+    assert design_for_budget(seven, 52) == 36 and design_for_budget(seven, 40) == 35
 
 
 def test_the_refusal_names_the_flag_the_value_the_minimum_and_the_override() -> None:
