@@ -126,7 +126,10 @@ def design_for_budget(config: StudyConfig, budget: int) -> int:
     is tight.
 
     It shrinks to leave one refinement batch and the check points, but not below what q
-    needs (max(10, 5 q)), and never beyond the budget: q = 7 with the default design of 40,
+    needs (max(10, 5 q)) — nor above the config's own design, which runs as it does without
+    ``--budget`` (at q >= 9 the default 40 is below 5 q; the refusal's words then say so,
+    :meth:`BudgetRequirement.describe`, and a resumed study keeps its design) — and never
+    beyond the budget: q = 7 with the default design of 40,
     batches of 8 and 8 check points gets 40 from a budget of 56 up, budget − 16 from 51 to
     55, and 35 below (refused unless small budgets are allowed). So the minimum a refusal
     names is the budget that then runs (the design does not grow with the budget given).
@@ -135,6 +138,4 @@ def design_for_budget(config: StudyConfig, budget: int) -> int:
     q = calibrated_count(config)
     room = budget - b.batch_size - b.check_points
     floor = default_design_size(q) if q is not None else 2
-    # not below q's floor even when the config's design is (q >= 9 with the default 40:
-    # the refusal named a design of 45 and the run spent 40; outside probe, session 30)
-    return max(2, min(max(b.initial_design, floor), max(room, floor), budget))
+    return max(2, min(b.initial_design, max(room, floor), budget))

@@ -456,7 +456,8 @@ def calibrate(
                 gain = additive_kernel_gain(
                     x, y, box, settings, FINAL_ITERATION, surrogate, boxed, laplace
                 )
-        except (RuntimeError, ValueError, ArithmeticError) as error:  # advice only: keep the result
+        except Exception as error:  # advice only: a failed fit (e.g. BoTorch's
+            # ModelFittingError, an Exception) must not lose a finished result
             logger.warning("the additive kernel could not be fitted for advice: %s", error)
         else:
             logger.info("additive kernel's leave-one-out gain over the Matérn: %.3f nats", gain)

@@ -57,8 +57,8 @@ COMMAND_LINE_ADVICE = {
     "parameters uniquely",
     "additive_kernel": "a pairwise additive kernel predicts the evaluations better than the "
     'default Matérn (leave-one-out, {gain:+.2f} nats a point): set [search] kernel = "auto" '
-    "(both kernels fitted, the better kept) and refine_optimism = 2 in study.toml, then "
-    "rerun with --resume --budget {more}",
+    "(both kernels fitted, the better kept) and refine_optimism = 2 in the study's config "
+    "(study.toml; monitor.toml for monitor), then rerun with --resume --budget {more}",
 }
 """Advice for a study run from the command line (or ``run_study``): flags and study keys."""
 
@@ -110,6 +110,36 @@ def _box_mass_unknown(evidence: Mapping[str, Any]) -> bool:
     return "mass_outside_box" in evidence and evidence["mass_outside_box"] is None
 
 
+def advice_code(
+    reasons: Sequence[Mapping[str, Any]], evidence: Mapping[str, Any], advice_for: AdviceFor
+) -> str:
+    """The key of the advice a not-trusted sentence gives: the first reason's code, or what
+    replaces it (``noisy``, ``failed_scattered``, ``narrow``, ``additive_kernel``,
+    ``hmc_stuck``, ``box_left_mass``); :mod:`.kernel_advice` asks it whether a gain would be
+    used before paying for the fit."""
+    first = reasons[0]
+    table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
+    # a noisy log L, or failures that strike anywhere, defeat every other remedy (more
+    # budget cannot converge on noise, nor on stand-in values scattered through the data)
+    noisy = any(r.get("direction") == "noisy" for r in reasons)
+    scattered = any(r.get("code") == "failed_region" and r.get("scattered") for r in reasons)
+    code = "noisy" if noisy else "failed_scattered" if scattered else first["code"]
+    if code == "not_converged" and first.get("posterior_width") is not None:
+        code = "narrow" if "narrow" in table else code
+    gain = evidence.get(ADDITIVE_GAIN_KEY)
+    if code in KERNEL_ADVISED_REASONS and gain is not None and gain >= ADDITIVE_GAIN_NATS:
+        code = "additive_kernel"  # the default kernel's structure is the problem
+    if code == "poor_mixing" and evidence.get("sampler") == "hmc":
+        code = "hmc_stuck"  # the caller forced HMC (outside probe, session 25)
+    if code == "search_box_edge" and (
+        first.get("evaluations_outside_box")
+        or first.get("mass_outside_box")
+        or first.get("tail_at_face")
+    ):
+        code = "box_left_mass"  # more budget would refine the same box
+    return code
+
+
 def sentence(
     reasons: Sequence[Mapping[str, Any]],
     evidence: Mapping[str, Any],
@@ -138,26 +168,7 @@ def sentence(
     first = reasons[0]
     budget = int(evidence.get("budget", 0))
     table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
-    # a noisy log L, or failures that strike anywhere, defeat every other remedy (more
-    # budget cannot converge on noise, nor on stand-in values scattered through the data)
-    noisy = any(r.get("direction") == "noisy" for r in reasons)
-    scattered = any(r.get("code") == "failed_region" and r.get("scattered") for r in reasons)
-    code = "noisy" if noisy else "failed_scattered" if scattered else first["code"]
-    if code == "not_converged" and first.get("posterior_width") is not None:
-        code = "narrow" if "narrow" in table else code
-    if (
-        code in KERNEL_ADVISED_REASONS
-        and evidence.get(ADDITIVE_GAIN_KEY, -math.inf) >= ADDITIVE_GAIN_NATS
-    ):
-        code = "additive_kernel"  # the default kernel's structure is the problem
-    if code == "poor_mixing" and evidence.get("sampler") == "hmc":
-        code = "hmc_stuck"  # the caller forced HMC (outside probe, session 25)
-    if code == "search_box_edge" and (
-        first.get("evaluations_outside_box")
-        or first.get("mass_outside_box")
-        or first.get("tail_at_face")
-    ):
-        code = "box_left_mass"  # more budget would refine the same box
+    code = advice_code(reasons, evidence, advice_for)
     advice = table.get(code, "rerun with a larger budget").format(
         minimum=evidence.get("minimum_budget", budget),
         more=max(2 * budget, int(evidence.get("minimum_budget", 0))),

@@ -28,10 +28,11 @@ def test_budget_minimum_follows_the_loop_structure() -> None:
     assert "configured" not in cli.describe() and "configured" not in loop.describe()
 
 
-def test_the_command_lines_design_never_falls_below_what_q_needs(tmp_path: Path) -> None:
-    """q = 9 with the config's design of 40: the refusal named a design of 45 (5 q) while the
-    run spent 40 (outside probe, session 30); the command line's design is now 45, and the
-    minimum a refusal names is again the budget that runs."""
+def test_a_design_smaller_than_q_needs_is_named_as_the_one_that_runs(tmp_path: Path) -> None:
+    """q = 9 with the config's design of 40: the refusal named "a design of 45" (5 q) while the
+    run spent 40 (outside probe, session 30). The design stays the config's, with or without
+    --budget (a study resumed with --resume --budget must replay its design), and the words
+    say that 40 runs."""
     from susp_bo.calibration.budget import calibrated_count, design_for_budget
     from susp_bo.rig.catalog import rig_path
     from susp_bo.study_config import StudyConfig
@@ -51,10 +52,14 @@ unit = "N·s/m"
     config = StudyConfig(rig=str(rig), data=Path("."), out=Path("out"))
     assert calibrated_count(config) == 9 and config.budget.initial_design == 40
     design = design_for_budget(config, 200)
-    assert design == 45
+    assert design == 40  # the config's, as without --budget
     b = config.budget
     requirement = budget_requirement(9, design, b.batch_size, b.check_points)
-    assert requirement.design == design and "configured" not in requirement.describe()
+    assert requirement.minimum == 45 + b.batch_size + b.check_points
+    assert (
+        "the configured design of 40 points, which the run uses, is smaller than the 45 that "
+        "q = 9 needs" in requirement.describe()
+    )
     seven = StudyConfig(rig="hst_trailer", data=Path("."), out=Path("out"))
     assert design_for_budget(seven, 200) == 40  # the demo's q = 7: unchanged
     assert design_for_budget(seven, 52) == 36 and design_for_budget(seven, 40) == 35

@@ -94,7 +94,9 @@ def test_the_advice_names_the_kernel_only_above_the_gain(gain: float, kernel_adv
         kernel_advised
     )
     assert ('[search] kernel = "auto"' in command_line.sentence) == kernel_advised
-    assert ("refine_optimism = 2 in study.toml" in command_line.sentence) == kernel_advised
+    assert ("refine_optimism = 2 in the study's config" in command_line.sentence) == (
+        kernel_advised
+    )
     if kernel_advised:
         assert f"{gain:+.2f} nats a point" in python.sentence
         assert "max_evaluations=200" in python.sentence
@@ -102,6 +104,46 @@ def test_the_advice_names_the_kernel_only_above_the_gain(gain: float, kernel_adv
     else:
         assert "max_evaluations=200" in python.sentence
         assert "kernel" not in python.sentence
+
+
+def test_no_fit_where_the_sentence_would_not_use_the_gain() -> None:
+    """The reviewer's cases: the fit ran and its gain was dropped where another reason's
+    advice leads (a budget below the minimum, a bound, a noisy log L, a narrow posterior)."""
+    default = CalibrationSettings()
+    misfit = {"code": "surrogate_misfit", "message": "check"}
+    led_by = [
+        {"code": "budget_too_small", "message": "b"},
+        {"code": "at_bound", "message": "a"},
+        {"code": "not_converged", "message": "n", "posterior_width": 0.004},
+    ]
+    for first in led_by:
+        assert not needs_kernel_advice(Reliability("not_trusted", (first, misfit)), default)
+    noisy = {**misfit, "direction": "noisy"}
+    assert not needs_kernel_advice(Reliability("not_trusted", (noisy,)), default)
+    assert needs_kernel_advice(Reliability("not_trusted", (misfit, led_by[1])), default)
+
+
+def test_a_gain_that_is_not_finite_is_not_stored() -> None:
+    before = _not_converged()
+    assert with_kernel_gain(before, float("nan")) == before
+
+
+def test_a_failed_advice_fit_keeps_the_finished_result(monkeypatch: pytest.MonkeyPatch) -> None:
+    """BoTorch's ModelFittingError is an Exception, not a RuntimeError: raised by the advice
+    fit after every evaluation was spent, it must not lose the result."""
+    from botorch.exceptions.errors import ModelFittingError
+
+    import susp_bo.calibration.loop as loop
+
+    def failing(*args: object, **kwargs: object) -> float:
+        raise ModelFittingError("All attempts to fit the model have failed.")
+
+    monkeypatch.setattr(loop, "additive_kernel_gain", failing)
+    names = [f"w{i}" for i in range(DIM)]
+    result = calibrate(_banana_target, UNIT_BOX, names, SMALL, progress=False)
+    assert result.reliability is not None and result.reliability.verdict == "not_trusted"
+    assert ADDITIVE_GAIN_KEY not in result.reliability.evidence
+    assert result.n_evaluations == SMALL.max_evaluations
 
 
 def test_a_narrow_posterior_keeps_its_trust_region_advice() -> None:
