@@ -100,8 +100,9 @@ from peer_samplers import run_bolfi, run_pyvbmc
 Runner = Callable[[Target, int, int], tuple[np.ndarray, int, dict[str, object] | None]]
 """(target, budget, seed) -> (draws, evaluations used, this tool's report or None): the
 report's ``verdict`` (reliability verdict and reasons), ``sampler`` (whose draws),
-``r_hat_max`` (their worst split R-hat) and ``draws_sd_nats`` (the surrogate's mean sd of
-log L̃ over them) join the run's row."""
+``r_hat_max`` (their worst split R-hat), ``draws_sd_nats`` (the surrogate's mean sd of
+log L̃ over them), ``additive_kernel_loo_gain`` (the kernel advice's gain, or None) and the
+verdict's ``sentence`` join the run's row."""
 ROBUSTNESS_TARGETS = ("curved_chain_5d", "student_t_6d", "trimodal_5d", "noisy_gaussian_7d")
 """The targets of issue 10, part 3 (MMTV <= 0.05 at 50 (q + 2), never worse than PyVBMC)."""
 
@@ -122,6 +123,12 @@ def run_susp_bo(settings: CalibrationSettings) -> Runner:
             "sampler": result.mcmc.get("sampler"),
             "r_hat_max": float(np.max(result.summary.r_hat)),
             "draws_sd_nats": None if reliability is None else reliability.evidence["draws_sd_nats"],
+            "additive_kernel_loo_gain": (
+                None
+                if reliability is None
+                else reliability.evidence.get("additive_kernel_loo_gain")
+            ),
+            "sentence": None if reliability is None else reliability.sentence,
         }
         return result.samples, result.n_evaluations, report
 
