@@ -135,6 +135,11 @@ CASES: dict[str, dict[str, Any]] = {
 7, loop seed 0; ``factor`` × the minimum budget when no ``budget``)."""
 
 
+def type_name(name: str, spec: RigSpec) -> str:
+    """The rig parameter ``name`` sets: its type's for ``<parameter>@<component>``."""
+    return split_component_name(name, spec.parameters)[0] if "@" in name else name
+
+
 def parse_parameters(
     text: str, spec: RigSpec
 ) -> tuple[list[str], np.ndarray, dict[str, tuple[float, float]]]:
@@ -146,10 +151,11 @@ def parse_parameters(
         fields = value.split(":")
         if len(fields) == 3:
             custom[name] = (float(fields[1]), float(fields[2]))
-        base = split_component_name(name, spec.parameters)[0] if "@" in name else name
         truth = fields[0]
         truths.append(
-            float(reference[base]) * float(truth[1:]) if truth.startswith("x") else float(truth)
+            float(reference[type_name(name, spec)]) * float(truth[1:])
+            if truth.startswith("x")
+            else float(truth)
         )
         names.append(name)
     return names, np.array(truths), custom
@@ -160,7 +166,7 @@ def case_spec(spec: RigSpec, names: list[str], custom: dict[str, tuple[float, fl
     ``custom`` gives one (then the unit is "-")."""
     entries = []
     for name in names:
-        base = split_component_name(name, spec.parameters)[0] if "@" in name else name
+        base = type_name(name, spec)
         if name in custom:
             lower, upper = custom[name]
             entries.append(
