@@ -204,12 +204,15 @@ def test_a_local_maximum_is_not_trusted_when_the_expected_log_l_says_so() -> Non
     misses the truth, and the verdict says ``below_expected_fit`` (best log L far below
     the log L expected at the truth, −n/2 ± √(n/2) for this Gaussian B; its message names
     the local optimum as one of the two causes). Without the early stop's audit: with it
-    the search looks at the rest of C_w and climbs the right hill (below)."""
+    the search looks at the rest of C_w and climbs the right hill (below). The budget is 44
+    since session 31: the wrong hill's posterior reaches past the local phase's box, which
+    the refinement now grows once (its draws' tail at the face), and at 40 that batch left
+    nothing for the audit (``not_trusted``, ``below_expected_fit``, never trusted)."""
     problem = WavySpectra()
     bounds = np.array([[0.0], [10.0]])
     n = problem.f.size
     settings = _loop_settings(
-        max_evaluations=40,
+        max_evaluations=44,
         initial_design_size=6,
         max_ego_fraction=0.0,
         check_points=4,
