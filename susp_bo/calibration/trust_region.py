@@ -117,7 +117,18 @@ def face_pressure(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
         strip: strip width as a fraction of the box width.
     """
     u = np.asarray(draws_local, dtype=np.float64)
-    return np.stack([np.mean(u < strip, axis=0), np.mean(u > 1.0 - strip, axis=0)])
+    return _strip_counts(u, strip) / u.shape[0]
+
+
+def _strip_counts(u: np.ndarray, strip: float) -> np.ndarray:
+    """(2 x q) the draws ``u`` (n x q, box unit cube) within ``strip`` of each face."""
+    return np.stack([np.sum(u < strip, axis=0), np.sum(u > 1.0 - strip, axis=0)])
+
+
+def _peak_count(u: np.ndarray, strip: float) -> np.ndarray:
+    """(q,) the draws within a ``strip``-wide band around the median (at least 1)."""
+    centre = np.median(u, axis=0)
+    return np.maximum(np.sum(np.abs(u - centre) < strip / 2, axis=0), 1)
 
 
 def held_points(x: np.ndarray, y: np.ndarray, within_reach: bool) -> np.ndarray:
@@ -226,17 +237,15 @@ def tail_at_faces(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
         strip: strip width as a fraction of the box width.
     """
     u = np.asarray(draws_local, dtype=np.float64)
-    centre = np.median(u, axis=0)
-    peak = np.maximum(np.sum(np.abs(u - centre) < strip / 2, axis=0), 1)
-    return np.stack([np.sum(u < strip, axis=0), np.sum(u > 1.0 - strip, axis=0)]) / peak
+    return _strip_counts(u, strip) / _peak_count(u, strip)
 
 
 def _tails_cut(draws_local: np.ndarray, strip: float = 0.05) -> np.ndarray:
     """(2 x q) True where the draws' density at a face exceeds :data:`TAIL_RATIO` of their
     peak's, counted from at least :data:`TAIL_DRAWS` draws in the face's strip."""
     u = np.asarray(draws_local, dtype=np.float64)
-    count = np.stack([np.sum(u < strip, axis=0), np.sum(u > 1.0 - strip, axis=0)])
-    return (tail_at_faces(u, strip) > TAIL_RATIO) & (count >= TAIL_DRAWS)
+    count = _strip_counts(u, strip)
+    return (count / _peak_count(u, strip) > TAIL_RATIO) & (count >= TAIL_DRAWS)
 
 
 def _faces(

@@ -97,20 +97,17 @@ def test_next_box_grows_where_it_cut_a_tail_that_presses_too_little_to_count() -
     in the face's strip, so the box stayed and the final verdict refused the result
     (``search_box_edge``). The refinement's 512 draws now grow it, as the verdict's rule
     would; a Gaussian in its 8-sd box and one stray draw do not."""
-    rng = np.random.default_rng(3)
     bounds = np.array([[0.0, 0.0], [1.0, 1.0]])
     box = np.array([[0.30, 0.40], [1.0, 0.60]])  # x0's upper face on the bound
     sd = np.array([0.15, 0.0125])  # x0's lower face 2.5 sd below its mode; x1's at 8 sd
-    phys = np.array([0.675, 0.50]) + sd * rng.standard_normal((20_000, 2))
-    phys = phys[np.all((phys > box[0]) & (phys < box[1]), axis=1)][:512]  # MCMC stays inside
-    local = (phys - box[0]) / (box[1] - box[0])
+    local = _draws(np.array([0.675, 0.50]), sd, box)
+    local = local[np.all((local > 0) & (local < 1), axis=1)][:512]  # MCMC stays inside
     assert face_pressure(local)[0, 0] < 0.01 and tail_at_faces(local)[0, 0] > 5e-4
-    new = next_box(local, box, bounds, phys[0], max_ratio=0.0)
+    new = next_box(local, box, bounds, from_unit(local[0], box), max_ratio=0.0)
     assert new is not None and new[0, 0] == 0.0  # grown one width down, to the bound
     assert new[1, 0] == 1.0 and (new[0, 1], new[1, 1]) == (0.40, 0.60)
-    gauss = np.array([0.65, 0.5]) + np.array([0.35 / 8, 0.0125]) * rng.standard_normal((512, 2))
-    gauss_local = (gauss - box[0]) / (box[1] - box[0])
-    assert next_box(gauss_local, box, bounds, gauss[0], max_ratio=0.0) is None
+    gauss = _draws(np.array([0.65, 0.5]), np.array([0.35 / 8, 0.0125]), box, n=512)
+    assert next_box(gauss, box, bounds, from_unit(gauss[0], box), max_ratio=0.0) is None
     stray = local[np.abs(local[:, 0] - 0.5) < 0.3].copy()
     stray[0, 0] = 0.01  # one draw in the lower face's strip: noise, not a tail
     assert next_box(stray, box, bounds, from_unit(stray[1], box), max_ratio=0.0) is None
