@@ -289,7 +289,9 @@ def with_lack_of_fit(
     of their linear steps (:func:`projected_lack_of_fit_ratio`) is the verdict's
     ``evidence["lack_of_fit_after_steps"]`` (it stops once that is below half the limit).
     Above the limit after the steps too, the reason ``below_expected_fit`` is added. With
-    one run, or spectra that failed, the ratio is None and the verdict unchanged.
+    one run (no simulation then), or spectra that failed at the best point, the ratio is
+    None, the verdict unchanged, and a trusted sentence says that this was not checked
+    (:mod:`.reliability_sentence`).
 
     Args:
         result: a finished calibration (its verdict is re-worded for a Python caller; a
@@ -304,17 +306,23 @@ def with_lack_of_fit(
     if reliability is None or not np.any(finite):
         return result
     y = np.asarray(measured, dtype=np.float64)
+    if y.shape[0] < 2:  # one run: nothing to compare its residual with, no simulation
+        return _unchecked(result)
     best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
     simulated = evaluator.spectra(best[None])[0]
-    usable = simulated.shape == y.shape and y.shape[0] >= 2 and np.all(np.isfinite(simulated))
-    weights = pure_error_weights(y, simulated) if usable else None
-    ratio = lack_of_fit_ratio(y, simulated, weights) if usable else math.nan
-    plain = lack_of_fit_ratio(y, simulated, np.ones(y.shape[1:])) if usable else math.nan
+    usable = simulated.shape == y.shape and np.all(np.isfinite(simulated))
+    if not usable:
+        return _unchecked(result)
+    weights = pure_error_weights(y, simulated)
+    ratio = lack_of_fit_ratio(y, simulated, weights)
+    plain = lack_of_fit_ratio(y, simulated, np.ones(y.shape[1:]))
     evidence = dict(reliability.evidence) | {
         "lack_of_fit_ratio": None if math.isnan(ratio) else ratio,
         "lack_of_fit_unweighted": None if math.isnan(plain) else plain,
     }
-    if reliability.trusted and math.isfinite(ratio) and ratio > LIMIT and weights is not None:
+    if math.isnan(ratio):  # no scatter between the runs, or weights that are not finite
+        return _unchecked(result, plain)
+    if reliability.trusted and ratio > LIMIT:
         ratio = _after_gauss_newton_steps(result, evaluator, y, best, simulated, ratio, weights)
         evidence["lack_of_fit_after_steps"] = None if math.isnan(ratio) else ratio
     misfit = systematic_misfit(ratio, int(y.shape[0])) if reliability.trusted else None
@@ -365,3 +373,19 @@ def _after_gauss_newton_steps(
             return smallest
         smallest = min(smallest, lack_of_fit_ratio(y, h, weights))
     return smallest
+
+
+def _unchecked(result: CalibrationResult, plain: float = math.nan) -> CalibrationResult:
+    """``result`` with F recorded as not computed (None; the equal-weight F ``plain`` kept
+    when it was) and its verdict unchanged; a trusted sentence is worded again, to say so
+    (Python terms, as the rule words its own)."""
+    reliability = result.reliability
+    assert reliability is not None  # with_lack_of_fit returned early otherwise
+    evidence = dict(reliability.evidence) | {
+        "lack_of_fit_ratio": None,
+        "lack_of_fit_unweighted": None if math.isnan(plain) else plain,
+    }
+    updated = dataclasses.replace(reliability, evidence=evidence)
+    return dataclasses.replace(
+        result, reliability=updated.worded_for("python") if updated.trusted else updated
+    )

@@ -204,8 +204,10 @@ def calibrate(
             ``evaluate`` exposes ``spectra(W)`` and ``measured`` ((ν x C x F), ν ≥ 2):
             F at the best point, and Gauss–Newton steps from it when F is high on an
             otherwise trusted result (:func:`.lack_of_fit.with_lack_of_fit`; those runs are
-            beyond ``max_evaluations`` and not in the data). False = the verdict of the
-            other rules alone (a benchmark's "before").
+            beyond ``max_evaluations`` and not in the data); with one measured run F
+            cannot be computed, ``evidence.lack_of_fit_ratio`` is null and a trusted
+            sentence says the check was not made. False = the verdict of the other rules
+            alone (a benchmark's "before").
 
     Returns:
         The :class:`CalibrationResult` (with its reliability verdict).
@@ -484,7 +486,7 @@ def calibrate(
     )
     measured = getattr(evaluate, "measured", None)
     spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator
-    if lack_of_fit and callable(spectra) and np.ndim(measured) == 3 and len(measured) >= 2:
+    if lack_of_fit and callable(spectra) and np.ndim(measured) == 3 and len(measured) >= 1:
         result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
     if result.reliability is not None:
         logger.info(result.reliability.sentence)

@@ -3,7 +3,10 @@
 Trusted: why (the search converged, the held-out check agreed, the MCMC mixed — naming
 HMC when its draws were assessed), and, after a search in a box whose left-out mass could
 not be estimated (``evidence.mass_outside_box`` null), that a broad, low mode outside the
-box is neither seen nor ruled out. Not trusted: the first reason's message, the other
+box is neither seen nor ruled out; and, when the lack of fit between measured runs was
+looked for but could not be computed (``evidence.lack_of_fit_ratio`` null: one run, or
+spectra that failed), that a model error the output error's scale hides is neither seen nor
+ruled out either. Not trusted: the first reason's message, the other
 reasons' codes, and what to do about the first, in the caller's terms: a Python caller of
 :func:`~susp_bo.calibration.loop.calibrate` is told the settings to change
 (:data:`PYTHON_ADVICE`), a study (``susp-bo calibrate``, ``demo``, ``monitor``) the flags and
@@ -98,16 +101,44 @@ PYTHON_ADVICE = {
 
 
 _UNBOUNDED_BOX_MASS = (
-    "; but the posterior mass outside the search box could not be estimated "
+    "the posterior mass outside the search box could not be estimated "
     "(mass_outside_box null), so a broad, low mode outside it is neither seen nor ruled out"
 )
 """The trusted sentence's caveat when :func:`.box_mass.share_outside_box` returned None."""
+
+_UNCHECKED_LACK_OF_FIT = (
+    "the lack of fit between measured runs could not be checked (lack_of_fit_ratio null: "
+    "it needs 2 or more runs with finite spectra), so a model error that the output "
+    "error's scale hides is neither seen nor ruled out"
+)
+"""The trusted sentence's caveat when :func:`.lack_of_fit.with_lack_of_fit` was applied but
+could not compute F: one measured run, or spectra that failed at the best point."""
 
 
 def _box_mass_unknown(evidence: Mapping[str, Any]) -> bool:
     """A boxed search whose share outside the box was not estimated (the key is present
     for boxed searches only, null when not estimated)."""
     return "mass_outside_box" in evidence and evidence["mass_outside_box"] is None
+
+
+def _lack_of_fit_unchecked(evidence: Mapping[str, Any]) -> bool:
+    """A result whose lack of fit was looked for but not computed (the key is present only
+    when the evaluator exposes its spectra and the measured runs; null when not computed)."""
+    return "lack_of_fit_ratio" in evidence and evidence["lack_of_fit_ratio"] is None
+
+
+def _caveats(evidence: Mapping[str, Any]) -> str:
+    """What a trusted result's rules could not look at, as the sentence's tail ("" when
+    every rule could)."""
+    unknown = [
+        text
+        for text, applies in (
+            (_UNBOUNDED_BOX_MASS, _box_mass_unknown(evidence)),
+            (_UNCHECKED_LACK_OF_FIT, _lack_of_fit_unchecked(evidence)),
+        )
+        if applies
+    ]
+    return "; but " + "; and ".join(unknown) if unknown else ""
 
 
 def advice_code(
@@ -163,7 +194,7 @@ def sentence(
             f"points and the MCMC mixed ({'HMC, ' if evidence.get('sampler') == 'hmc' else ''}"
             f"R-hat <= {evidence.get('r_hat_max', math.nan):.3f}, "
             f"ESS >= {evidence.get('ess_min', math.nan):.0f})"
-            f"{_UNBOUNDED_BOX_MASS if _box_mass_unknown(evidence) else ''}."
+            f"{_caveats(evidence)}."
         )
     first = reasons[0]
     budget = int(evidence.get("budget", 0))

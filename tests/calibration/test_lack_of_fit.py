@@ -228,6 +228,21 @@ def test_a_calibration_of_data_from_another_vehicle_is_refused(
     assert (
         checked.reliability.trusted and checked.reliability.sentence == result.reliability.sentence
     )
+    # where F cannot be computed the trusted sentence says the check was not made
+    # (session 32): one measured run (and then no simulation), spectra that fail
+    caveat = "the lack of fit between measured runs could not be checked"
+    assert caveat not in checked.reliability.sentence
+    failing = _FailingAfterTheBestPoint(problem)
+    failing.calls = 1  # every call fails
+    for unchecked in (
+        with_lack_of_fit(result, failing, problem.measured[:1]),
+        with_lack_of_fit(result, failing, problem.measured),
+    ):
+        assert unchecked.reliability.trusted
+        assert unchecked.reliability.evidence["lack_of_fit_ratio"] is None
+        assert caveat in unchecked.reliability.sentence
+        assert unchecked.reliability.sentence.startswith(result.reliability.sentence[:-1])
+    assert failing.calls == 2  # one simulation: the run with two or more runs
     # a best point 30 % off the truth leaves the damper's own signature (F ≈ 8): the
     # Gauss–Newton steps from it find the fit's optimum, and the verdict stays
     short = dataclasses.replace(result, X=np.array([[1.3 * WORN_TRUTH[_DAMPER]]]), y=np.zeros(1))
@@ -235,6 +250,43 @@ def test_a_calibration_of_data_from_another_vehicle_is_refused(
     assert stepped.reliability.evidence["lack_of_fit_ratio"] > 2 * LIMIT
     assert stepped.reliability.evidence["lack_of_fit_after_steps"] < LIMIT / 2
     assert stepped.reliability.trusted
+
+
+class _OneRun(_DamperEvaluator):
+    """The same damper measured in one run only (the paired setting allows it): the
+    unpaired B of the three runs, the first run's spectra and log L."""
+
+    def __init__(self, problem: DiagnosisProblem) -> None:
+        super().__init__(problem)
+        self.measured = problem.measured[:1]
+
+    def spectra(self, W: np.ndarray) -> np.ndarray:
+        return super().spectra(W)[:, :1]
+
+
+def test_a_calibration_on_one_run_says_its_lack_of_fit_was_not_checked() -> None:
+    """Session 32: with one measured run the lack of fit cannot be computed, and a trusted
+    result said nothing of it — a model error that B's scale hides went unlooked-for in
+    silence. ``calibrate`` now records F as null and the trusted sentence says so."""
+    spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
+    problem = synthesize_problem(spec, None, truth=dict(WORN_TRUTH), nu=3, seed=0, noise_m_s2=0.01)
+    bounds = np.asarray(spec.calibration_bounds)[:, [spec.calibration_names.index(_DAMPER)]]
+    settings = CalibrationSettings(
+        seed=1,
+        max_evaluations=24,
+        initial_design_size=10,
+        batch_size=2,
+        check_points=2,
+        mcmc_chains=64,
+        mcmc_warmup=200,
+        mcmc_samples=200,
+    )
+    result = calibrate(_OneRun(problem), bounds, [_DAMPER], settings, progress=False)
+    reliability = result.reliability
+    assert reliability is not None and reliability.evidence["lack_of_fit_ratio"] is None
+    assert reliability.trusted, reliability.sentence
+    assert "lack of fit between measured runs could not be checked" in reliability.sentence
+    assert reliability.sentence.endswith("neither seen nor ruled out.")
 
 
 def test_the_linear_step_removes_the_parameters_signature_only() -> None:

@@ -144,3 +144,22 @@ def test_a_trusted_sentence_says_when_the_mass_outside_its_box_is_unknown() -> N
     for known in ({**evidence, "mass_outside_box": 1e-30}, evidence):  # estimated; no box
         text = sentence((), known, "command_line")
         assert caveat not in text and text.endswith("ESS >= 900).")
+
+
+def test_a_trusted_sentence_says_when_the_lack_of_fit_was_not_checked() -> None:
+    """Session 32: with one measured run (or spectra that failed) F is null, and the trusted
+    sentence said nothing of the check it could not make; both caveats read as one sentence."""
+    evidence = {"optimum_gap_nats": 0.01, "check_points": 8, "r_hat_max": 1.01, "ess_min": 900}
+    caveat = "the lack of fit between measured runs could not be checked"
+    alone = sentence((), {**evidence, "lack_of_fit_ratio": None}, "python")
+    assert alone.startswith("Trusted: the search converged") and caveat in alone
+    assert alone.endswith("neither seen nor ruled out.") and alone.count("; but ") == 1
+    both = sentence(
+        (), {**evidence, "lack_of_fit_ratio": None, "mass_outside_box": None}, "command_line"
+    )
+    assert both.count("; but ") == 1 and "; and the lack of fit" in both
+    assert "mass_outside_box null" in both and both.endswith("ruled out.")
+    for checked in ({**evidence, "lack_of_fit_ratio": 1.1}, evidence):  # computed; no spectra
+        assert caveat not in sentence((), checked, "python")
+    refused = ({"code": "poor_mixing", "message": "m"},)
+    assert caveat not in sentence(refused, {**evidence, "lack_of_fit_ratio": None}, "python")
