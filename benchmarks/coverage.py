@@ -287,7 +287,11 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         "error": (
             {"model": "paired", "noise_m_s2": options.noise}
             if options.error == "paired"
-            else {"model": "unpaired", "sigma": list(problem.error.sigma)}
+            else {
+                "model": "unpaired",
+                "sigma": list(problem.error.sigma),
+                "unknown_tracks": options.unknown_tracks,
+            }
         ),
         "seconds": time.perf_counter() - started,
     }
@@ -444,6 +448,12 @@ def main(argv: list[str] | None = None) -> int:
         "(CalibrationSettings.trust_region_half_width_sd)",
     )
     parser.add_argument(
+        "--unknown-tracks",
+        action="store_true",
+        help="the calibration simulates ν other realizations of the track process, not the "
+        "measured tracks (the unpaired model's own setting; needs --error unpaired)",
+    )
+    parser.add_argument(
         "--aggregate-only", action="store_true", help="figures of the finished experiments only"
     )
     args = parser.parse_args(argv)
@@ -462,6 +472,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--budget: got {args.budget}; expected >= 12")
     if args.reference_only and args.error != "paired":
         parser.error("--reference-only: the Laplace reference needs --error paired")
+    if args.unknown_tracks and args.error != "unpaired":
+        parser.error(
+            "--unknown-tracks: the paired model compares each run with its own track; "
+            "give --error unpaired"
+        )
     options = Options(
         args.nu,
         args.noise,
@@ -475,6 +490,7 @@ def main(argv: list[str] | None = None) -> int:
         args.local_search,
         args.surrogate_mean,
         args.half_width_sd,
+        args.unknown_tracks,
     )
     out: Path = args.out
     folder = out / "experiments"
@@ -488,6 +504,7 @@ def main(argv: list[str] | None = None) -> int:
             "local_search": False,
             "surrogate_mean": "auto",
             "half_width_sd": 8.0,
+            "unknown_tracks": False,
             **json.loads(config_path.read_text()),
         }
         if stored != dataclasses.asdict(options):

@@ -48,6 +48,7 @@ class Options:
     local_search: bool = False
     surrogate_mean: str = "auto"
     half_width_sd: float = 8.0
+    unknown_tracks: bool = False
 
 
 def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
@@ -129,7 +130,12 @@ def laplace_at_truth(
 
 
 class FastPathProblem:
-    """Synthetic runs of one truth and ``evaluate(W) -> log L`` on the linearised rig."""
+    """Synthetic runs of one truth and ``evaluate(W) -> log L`` on the linearised rig.
+
+    The model simulates run i on run i's own track (``tracks`` = ``measured_tracks``),
+    or, with ``options.unknown_tracks``, on ν other realizations of the same track
+    process (the unpaired model's setting: the tracks were not measured).
+    """
 
     def __init__(self, spec: RigSpec, truth: dict[str, float], options: Options, seed: int):
         self.spec = spec
@@ -157,7 +163,18 @@ class FastPathProblem:
         self.measured = np.stack(measured)
         self.clean_signals = tuple(clean)  # (ν,) noise-free (C x n_t) m/s², run i on track i
         self.channels = tuple(response.channels)
-        self.tracks = tuple(tracks)
+        self.measured_tracks = tuple(tracks)
+        if options.unknown_tracks:  # the unpaired model's own setting: only the track's
+            # statistics are known, so the model simulates ν other realizations of them
+            tracks = [
+                TrackRun(
+                    f"sim{index:03d}",
+                    synthetic_track(spec, seed=track_seed(seed, options.nu + index)),
+                    profile,
+                )
+                for index in range(options.nu)
+            ]
+        self.tracks = tuple(tracks)  # what the model simulates: the measured tracks or not
         self.error: PairedOutputError | OutputError
         if options.error == "paired":
             self.error = PairedOutputError(
