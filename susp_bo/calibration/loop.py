@@ -105,6 +105,7 @@ from susp_bo.calibration.sampling import (
 )
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate_check import SurrogateCheck
+from susp_bo.calibration.track_match import with_track_match
 from susp_bo.calibration.trust_region import box_edge, held_points, hold_points, to_global_unit
 from susp_bo.numerics import one_blas_thread
 from susp_bo.progress import progress_bar
@@ -486,8 +487,10 @@ def calibrate(
     )
     measured = getattr(evaluate, "measured", None)
     spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator
-    if lack_of_fit and callable(spectra) and np.ndim(measured) == 3 and len(measured) >= 1:
-        result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
+    if callable(spectra) and np.ndim(measured) == 3 and len(measured) >= 1:
+        result = with_track_match(result, evaluate, np.asarray(measured))
+        if lack_of_fit:
+            result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
     if result.reliability is not None:
         logger.info(result.reliability.sentence)
     return result

@@ -36,6 +36,10 @@ COMMAND_LINE_ADVICE = {
     "not_converged": "rerun with --resume --budget {more}",
     "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
+    "unmeasured_tracks": "measure each run's track and give it with the run (the "
+    "measured-data format's track geometry), then calibrate with [output_error] model = "
+    '"paired" and [search] local = true; no interval of this tool is calibrated on tracks '
+    "known only by their statistics",
     "failed_region": "look at the failed evaluations (the log, evaluations.sqlite): narrow "
     "the admissible interval to where the simulator runs, or make the failing simulations "
     "run, then rerun",
@@ -71,6 +75,9 @@ PYTHON_ADVICE = {
     "not_converged": _MORE,
     "below_expected_fit": "look for physics the model misses (susp-bo diagnose examines a "
     "study's results folder); if the search may sit in a local optimum, " + _MORE,
+    "unmeasured_tracks": "simulate each run on its own measured track and calibrate with "
+    "the paired model (PairedOutputError, CalibrationSettings(local_search=True)); no "
+    "interval of this tool is calibrated on tracks known only by their statistics",
     "failed_region": "look at the failed evaluations (result.X where result.y is NaN): "
     "narrow the bounds to where the evaluator runs, or make the failing evaluations run, "
     "then rerun",

@@ -1,0 +1,127 @@
+"""Do the simulated tracks reproduce the measured runs? Where the unpaired model's intervals fail.
+
+The unpaired output error (eq. 4, :mod:`.likelihood`) compares every measured run y_i with
+every simulated spectrum h(x_j, w), its σ_B the scatter between runs on different tracks.
+A study simulates each run on its own measured track, so the residual y_i − h(x_i, w) is
+8–30× smaller than σ_B and the unpaired intervals are wider than the data need (SBC on the
+linearised rig: z rms 0.31, every interval holding the truth). Its own setting — tracks
+known only by their statistics, the simulation run on *other* realizations of the track
+process — was never measured until session 32 (``python benchmarks/coverage.py
+--experiments 40 --nu 3 --noise 0.01 --error unpaired --local-search --unknown-tracks
+--seed 32``): there the posterior is far too narrow (the truth's log L 16–160 nats below
+the best point, |z| up to 19), and results the other rules passed were ``trusted`` with
+the truth 4–8 posterior sd away. Eq. 4 treats each run and each frequency bin as an
+independent draw about the μ simulated spectra, while those few simulated tracks are one
+fixed draw shared by every run: their own deviation from the track process's mean
+spectrum moves the fit, and the posterior does not know it.
+
+The rule here tells the two settings apart from the data. With σ_c from the unpaired B,
+
+    T = mean_i min_j mean_{c,f} ((y_icf − h_jcf(ŵ)) / σ_c)²
+
+at the best evaluated point ŵ: each run against the simulated spectrum nearest to it.
+σ_B² is the variance of the difference between two independent realizations, so T ≈ 1
+when no simulated track is a run's own (0.84–1.35 measured on the SBC's data), and T ≈
+(sensor noise + model error)² / σ_B² ≪ 1 when each run's own track is among them (≤ 0.12
+on the same data at a best point several sd off the truth). Above :data:`LIMIT` the
+result is not trusted (``unmeasured_tracks``): no output-error model of this tool has
+calibrated intervals on tracks known only by their statistics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from susp_bo.calibration.likelihood import OutputError
+from susp_bo.calibration.reliability_rules import Reason
+from susp_bo.calibration.result import CalibrationResult
+from susp_bo.calibration.trust_region import best_point
+
+LIMIT = 0.25
+"""T above which the simulated tracks are taken not to be the runs' own (module docstring:
+≤ 0.12 with the runs' own tracks, 0.84–1.35 without)."""
+
+
+def track_match_ratio(measured: np.ndarray, simulated: np.ndarray, sigma: Any) -> float:
+    """T: each run's mean squared standardised residual against its nearest simulated run.
+
+    Args:
+        measured: (ν x C x F) measured log-amplitude spectra.
+        simulated: (μ x C x F) simulated spectra at one parameter point.
+        sigma: (C,) the unpaired B's σ_c (natural-log units, > 0).
+
+    Returns:
+        T (dimensionless); NaN when a spectrum is not finite or the shapes disagree.
+    """
+    y = np.asarray(measured, dtype=np.float64)
+    h = np.asarray(simulated, dtype=np.float64)
+    s = np.asarray(sigma, dtype=np.float64).reshape(-1)
+    if y.ndim != 3 or h.ndim != 3 or y.shape[1:] != h.shape[1:] or s.shape != (y.shape[1],):
+        return math.nan
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(h)) and np.all(s > 0)):
+        return math.nan
+    standardised = (y[:, None] - h[None, :]) / s[None, None, :, None]  # ν x μ x C x F
+    per_pair = np.mean(standardised**2, axis=(2, 3))
+    return float(np.mean(np.min(per_pair, axis=1)))
+
+
+def unmeasured_tracks(ratio: float, limit: float = LIMIT) -> Reason | None:
+    """``unmeasured_tracks`` when T = ``ratio`` exceeds ``limit``; None otherwise or NaN."""
+    if not math.isfinite(ratio) or ratio <= limit:
+        return None
+    return {
+        "code": "unmeasured_tracks",
+        "message": (
+            f"the simulated tracks do not reproduce the measured runs (T = {ratio:.2f}: runs "
+            f"on their own measured tracks give well below {limit:g}, other realizations of "
+            "the track process about 1): on tracks known only by their statistics the "
+            "unpaired model's intervals are too narrow (the truth up to 19 posterior sd "
+            "away in simulation-based calibration)"
+        ),
+        "track_match_ratio": float(ratio),
+    }
+
+
+def with_track_match(
+    result: CalibrationResult, evaluator: Any, measured: np.ndarray
+) -> CalibrationResult:
+    """``result`` with T at its best evaluated point in the verdict (unpaired B only).
+
+    T is recorded as ``evidence["track_match_ratio"]`` (None when not computable); a result
+    no other rule refused whose T exceeds :data:`LIMIT` becomes ``not_trusted``
+    (``unmeasured_tracks``). Under the paired B, or without spectra, ``result`` is
+    returned as it is.
+
+    Args:
+        result: a finished calibration (:func:`.loop.calibrate` calls this itself).
+        evaluator: what calibrated it: ``error`` (the output-error model) and
+            ``spectra(W)`` -> (b x μ x C x F) (:class:`.evaluation.LikelihoodEvaluator`;
+            a study's come from its store, no new simulation).
+        measured: (ν x C x F) the measured spectra.
+    """
+    reliability = result.reliability
+    error = getattr(evaluator, "error", None)
+    spectra = getattr(evaluator, "spectra", None)
+    finite = np.isfinite(result.y)
+    if reliability is None or not isinstance(error, OutputError) or not callable(spectra):
+        return result
+    if not np.any(finite):
+        return result
+    best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
+    ratio = track_match_ratio(measured, spectra(best[None])[0], error.sigma)
+    evidence = dict(reliability.evidence) | {
+        "track_match_ratio": None if math.isnan(ratio) else ratio
+    }
+    reason = unmeasured_tracks(ratio) if reliability.trusted else None
+    if reason is None:
+        return dataclasses.replace(
+            result, reliability=dataclasses.replace(reliability, evidence=evidence)
+        )
+    updated = dataclasses.replace(
+        reliability, verdict="not_trusted", reasons=(reason,), evidence=evidence
+    )
+    return dataclasses.replace(result, reliability=updated.worded_for("python"))
