@@ -26,60 +26,34 @@ Failed evaluations, and what a resumed study does with them:
 
 A successful row is never overwritten. Only the process that owns the study
 writes to the store; workers return results and never open it.
+
+The evaluation record, its key and the checks of its fields are
+:mod:`susp_bo.store_evaluation`; the SQLite tables and the write transaction,
+:mod:`susp_bo.store_tables`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
-import math
-import numbers
 import sqlite3
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from types import TracebackType
-from typing import Literal
 
 import numpy as np
 
 from susp_bo import __version__
+
+# ``name as name``: re-exported, importable from susp_bo.store as before the split.
+from susp_bo.store_evaluation import FAILURE_KINDS as FAILURE_KINDS
+from susp_bo.store_evaluation import Evaluation as Evaluation
+from susp_bo.store_evaluation import FailureKind as FailureKind
+from susp_bo.store_evaluation import _check_status, _finite_real, _parameter_array
+from susp_bo.store_evaluation import evaluation_key as evaluation_key
 from susp_bo.store_fingerprint import fingerprint_difference
-
-STORE_SCHEMA_VERSION = "1"
-"""Bumped whenever the tables change incompatibly; part of every fingerprint."""
-
-FailureKind = Literal["error", "crash"]
-FAILURE_KINDS: tuple[str, ...] = ("error", "crash")
-
-_SCHEMA = (
-    """CREATE TABLE study (
-    key   TEXT PRIMARY KEY,
-    value TEXT NOT NULL
-)""",
-    """CREATE TABLE evaluations (
-    id             INTEGER PRIMARY KEY AUTOINCREMENT,
-    key            TEXT NOT NULL UNIQUE,
-    parameters     BLOB NOT NULL,
-    parameters_json TEXT NOT NULL,
-    track_id       TEXT NOT NULL,
-    status         TEXT NOT NULL CHECK (status IN ('ok', 'failed')),
-    failure_kind   TEXT CHECK (failure_kind IN ('error', 'crash')),
-    failure_reason TEXT,
-    spectra        BLOB,
-    spectra_shape  TEXT,
-    log_likelihood REAL,
-    seconds        REAL NOT NULL,
-    attempts       INTEGER NOT NULL DEFAULT 1,
-    code_version   TEXT NOT NULL,
-    created_at     TEXT NOT NULL
-)""",
-)
-_COLUMNS = (
-    "key, parameters, track_id, status, failure_kind, failure_reason, spectra, "
-    "spectra_shape, log_likelihood, seconds, attempts, code_version, created_at"
-)
+from susp_bo.store_tables import _COLUMNS, _SCHEMA, _Transaction
+from susp_bo.store_tables import STORE_SCHEMA_VERSION as STORE_SCHEMA_VERSION
 
 
 class StoreMismatchError(ValueError):
@@ -98,95 +72,6 @@ class StoreMismatchError(ValueError):
 
 class StoreFileError(ValueError):
     """The file is not a readable evaluation store (another file, or a damaged one)."""
-
-
-@dataclass(frozen=True, eq=False)  # holds arrays: compare fields, not objects
-class Evaluation:
-    """One recorded simulator evaluation.
-
-    Attributes:
-        key: hex sha256 of the parameters' float64 bytes and the track id.
-        parameters: (q,) float64, physical units, calibration order.
-        track_id: the track realization (measured stretch) the rig ran on.
-        status: ``"ok"`` or ``"failed"``.
-        spectra: (C x F) float64 log-amplitude spectra, or None.
-        log_likelihood: the evaluation's log-likelihood contribution, or None.
-        failure_kind: ``"error"`` (deterministic, reused on resume) or
-            ``"crash"`` (worker lost, re-run on resume); None when ok.
-        failure_reason: human-readable reason, None when ok.
-        seconds: wall time of the evaluation (s).
-        attempts: how many times this key was recorded (crash retries).
-        code_version: package version that produced the row.
-        created_at: ISO-8601 UTC time of the last write.
-    """
-
-    key: str
-    parameters: np.ndarray
-    track_id: str
-    status: Literal["ok", "failed"]
-    spectra: np.ndarray | None
-    log_likelihood: float | None
-    failure_kind: FailureKind | None
-    failure_reason: str | None
-    seconds: float
-    attempts: int
-    code_version: str
-    created_at: str
-
-    @property
-    def ok(self) -> bool:
-        """True for a successful evaluation."""
-        return self.status == "ok"
-
-
-def _parameter_array(parameters: np.ndarray | list[float] | tuple[float, ...]) -> np.ndarray:
-    try:
-        values = np.ascontiguousarray(parameters, dtype="<f8")
-    except (TypeError, ValueError) as error:
-        raise TypeError(
-            f"parameters: {parameters!r} is not allowed; expected (q,) real numbers"
-        ) from error
-    if values.ndim != 1 or values.size == 0:
-        raise ValueError(f"parameters: shape {values.shape} is not allowed; expected (q,), q >= 1")
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"parameters: {values.tolist()} contains NaN or inf; expected finite")
-    return values
-
-
-def _check_track_id(track_id: str) -> str:
-    if not isinstance(track_id, str):
-        raise TypeError(
-            f"track_id: {track_id!r} ({type(track_id).__name__}) is not allowed; expected a str"
-        )
-    return track_id
-
-
-def _finite_real(name: str, value: float, minimum: float | None = None) -> float:
-    """``value`` as a float, refused (naming ``name``) unless a finite real ≥ ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name}: {value!r} is not allowed; expected a finite real number")
-    number = float(value)
-    if not math.isfinite(number) or (minimum is not None and number < minimum):
-        bound = "" if minimum is None else f" >= {minimum:g}"
-        raise ValueError(f"{name}: {number} is not allowed; expected a finite number{bound}")
-    return number
-
-
-def evaluation_key(parameters: np.ndarray | list[float], track_id: str) -> str:
-    """Deterministic key of an evaluation: sha256 of the exact float64 bytes and the track id.
-
-    Args:
-        parameters: (q,) parameter vector; converted to little-endian float64.
-        track_id: track realization id.
-
-    Returns:
-        64 hex characters. Equal iff the float64 values are bit-identical and the
-        track ids equal (so 0.0 and -0.0 are different points).
-    """
-    values = _parameter_array(parameters)
-    digest = hashlib.sha256(values.tobytes())
-    digest.update(b"\x00" + _check_track_id(track_id).encode("utf-8"))
-    return digest.hexdigest()
 
 
 def _major_minor(version: str) -> str:
@@ -530,29 +415,6 @@ class EvaluationStore:
         traceback: TracebackType | None,
     ) -> None:
         self.close()
-
-
-class _Transaction:
-    """``BEGIN IMMEDIATE`` … ``COMMIT``, or ``ROLLBACK`` on any exception."""
-
-    def __init__(self, db: sqlite3.Connection) -> None:
-        self._db = db
-
-    def __enter__(self) -> None:
-        self._db.execute("BEGIN IMMEDIATE")
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self._db.execute("ROLLBACK" if exc_type is not None else "COMMIT")
-
-
-def _check_status(status: str | None) -> None:
-    if status not in (None, "ok", "failed"):
-        raise ValueError(f"status: {status!r} is not allowed; expected None, 'ok' or 'failed'")
 
 
 def _from_row(row: tuple, path: Path) -> Evaluation:
