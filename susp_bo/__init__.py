@@ -59,9 +59,9 @@ _EXPORTS: dict[str, str] = {
     "log_amplitude_spectra": "susp_bo.rig.spectra",
     "MeasuredRun": "susp_bo.data.measured",
     "MeasuredDataError": "susp_bo.data.measured",
-    "load_run": "susp_bo.data.measured",
-    "load_runs": "susp_bo.data.measured",
-    "save_run": "susp_bo.data.measured",
+    "load_run": "susp_bo.data.run_files",
+    "load_runs": "susp_bo.data.run_files",
+    "save_run": "susp_bo.data.run_files",
     "synthesize_runs": "susp_bo.data.synthetic",
     "OutputError": "susp_bo.calibration.likelihood",
     "log_likelihood": "susp_bo.calibration.likelihood",
@@ -127,7 +127,8 @@ if TYPE_CHECKING:  # pragma: no cover - static names for type checkers and IDEs
     from susp_bo.calibration.reliability import Reliability
     from susp_bo.calibration.settings import CalibrationSettings
     from susp_bo.calibration.study import run_study
-    from susp_bo.data.measured import MeasuredDataError, MeasuredRun, load_run, load_runs, save_run
+    from susp_bo.data.measured import MeasuredDataError, MeasuredRun
+    from susp_bo.data.run_files import load_run, load_runs, save_run
     from susp_bo.data.synthetic import synthesize_runs
     from susp_bo.execution import make_executor, run_tasks
     from susp_bo.monitoring.runner import monitor

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from susp_bo.calibration.budget import budget_message, budget_requirement
-from susp_bo.data.measured import MeasuredRun, run_paths
+from susp_bo.data.measured import MeasuredRun
+from susp_bo.data.run_files import run_paths
 from susp_bo.rig.assembly import build_assembly
 from susp_bo.rig.curving import reference_specific_force
 from susp_bo.rig.schema import did_you_mean
@@ -42,7 +43,7 @@ def reference_parameters(
 
 def run_names(runs: tuple[MeasuredRun, ...], folder: Path) -> list[str]:
     """What to call each of ``runs`` in a message: its file name when ``runs`` are the
-    measured-run files of ``folder`` (as :func:`~susp_bo.data.measured.load_runs` reads
+    measured-run files of ``folder`` (as :func:`~susp_bo.data.run_files.load_runs` reads
     them, sorted by name), else ``run <index>``."""
     files = [path.name for path in run_paths(folder)]
     if len(files) != len(runs):  # not the folder load_runs read: number the runs

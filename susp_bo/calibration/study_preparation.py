@@ -32,7 +32,8 @@ from susp_bo.calibration.study_inputs import (
     run_names,
     sensor_noise,
 )
-from susp_bo.data.measured import MeasuredRun, load_runs
+from susp_bo.data.measured import MeasuredRun
+from susp_bo.data.run_files import load_runs
 from susp_bo.data.run_validation import validate_run
 from susp_bo.output_folder import (
     CONFIG_NAME,

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from susp_bo.cli import UsageError
-from susp_bo.data.measured import run_paths
+from susp_bo.data.run_files import run_paths
 from susp_bo.output_folder import check_output_folder
 from susp_bo.rig.schema import did_you_mean
 from susp_bo.rig.spec import SIMULATION_LIMITS

@@ -25,7 +25,8 @@ from susp_bo.calibration.study_preparation import STORE_NAME
 from susp_bo.cli import UsageError
 from susp_bo.commands._common import checked_output_folder, existing_runs
 from susp_bo.commands.calibrate import format_summary
-from susp_bo.data.measured import MeasuredRun, save_run
+from susp_bo.data.measured import MeasuredRun
+from susp_bo.data.run_files import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.output_folder import CONFIG_NAME, LOG_NAME, RESULT_NAME, SAMPLES_NAME
 from susp_bo.output_lock import OutputFolderBusy, hold_output_folder
@@ -124,7 +125,8 @@ def check_demo_folder(folder: Path, setting: Mapping[str, Any], smoke: bool) -> 
         UsageError: ``data/`` holds runs that are not this demo's (another seed, ``--smoke``
             or data set), an unreadable run, or the folder holds a study but no demo runs.
     """
-    from susp_bo.data.measured import MeasuredDataError, load_run
+    from susp_bo.data.measured import MeasuredDataError
+    from susp_bo.data.run_files import load_run
 
     data = folder / "data"
     flags = f"--seed {setting['seed']}{' --smoke' if smoke else ''}"

@@ -57,7 +57,7 @@ def refuse_ignored_speed(kind: str, inputs: list[str], speed: float) -> None:
 def run_import(args: argparse.Namespace) -> int:
     """Convert, check and write the runs; returns the exit code."""
     from susp_bo.data.collect import read_runs
-    from susp_bo.data.measured import save_run
+    from susp_bo.data.run_files import save_run
     from susp_bo.data.run_validation import validate_run
 
     out = checked_output_folder(args.out)

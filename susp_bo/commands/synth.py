@@ -19,7 +19,7 @@ from susp_bo.commands._common import (
     read_parameter_file,
     refuse_unstable_speed,
 )
-from susp_bo.data.measured import save_run
+from susp_bo.data.run_files import save_run
 from susp_bo.data.synthetic import MAX_NOISE_M_S2, MAX_RUNS, synthesize_runs
 from susp_bo.discrepancy.effects import with_effect
 from susp_bo.json_files import write_json

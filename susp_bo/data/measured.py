@@ -64,19 +64,21 @@ Loading never returns a half-valid run: any problem (not HDF5, truncated,
 missing or extra-shaped dataset, wrong dtype, wrong units attribute, NaN or
 inf, non-positive sample rate, …) raises :class:`MeasuredDataError`, a
 ``ValueError`` naming the file, the item and what was expected.
+
+Writing, reading and finding the files (:func:`save_run`, :func:`load_run`,
+:func:`load_runs`, :func:`run_paths`) is :mod:`susp_bo.data.run_files`; the names are
+still importable from here.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib
 import json
 import math
-import os
-import uuid
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,6 +86,13 @@ from numpy.typing import NDArray
 from susp_bo.rig.design import DESIGN_COMPONENTS, TrackDesign
 from susp_bo.rig.spectra import Spectra, SpectrumSettings, log_amplitude_spectra
 from susp_bo.rig.track import GEOMETRY_COMPONENTS, SpeedProfile, TrackGeometry
+
+if TYPE_CHECKING:  # pragma: no cover - static names for type checkers and IDEs
+    from susp_bo.data.run_files import RUN_SUFFIXES as RUN_SUFFIXES
+    from susp_bo.data.run_files import load_run as load_run
+    from susp_bo.data.run_files import load_runs as load_runs
+    from susp_bo.data.run_files import run_paths as run_paths
+    from susp_bo.data.run_files import save_run as save_run
 
 FloatArray = NDArray[np.float64]
 
@@ -410,133 +419,6 @@ def _channel_tuple(channels: Sequence[str]) -> tuple[str, ...]:
     return names
 
 
-def save_run(run: MeasuredRun, path: str | os.PathLike[str]) -> Path:
-    """Write ``run`` to an HDF5 file in the documented format (atomic replace).
-
-    Args:
-        run: the run.
-        path: the file to write; its suffix is one :func:`load_runs` reads
-            (:data:`RUN_SUFFIXES`: ``.h5``, ``.hdf5``).
-
-    Returns:
-        The path written.
-
-    Raises:
-        TypeError: ``run`` is not a :class:`MeasuredRun`.
-        MeasuredDataError: ``path`` is a folder or has another suffix.
-    """
-    from susp_bo.data._hdf5 import write_run_file
-
-    if not isinstance(run, MeasuredRun):
-        raise TypeError(f"run: expected a MeasuredRun, got {type(run).__name__}")
-    target = Path(path)
-    if target.is_dir():
-        raise MeasuredDataError(f"path: {target} is a folder; expected a run file (e.g. run.h5)")
-    if target.suffix not in RUN_SUFFIXES:
-        raise MeasuredDataError(
-            f"path: {target} has suffix {target.suffix!r}, which load_runs does not read; "
-            f"expected one of {sorted(RUN_SUFFIXES)}"
-        )
-    target.parent.mkdir(parents=True, exist_ok=True)
-    # a unique name made like a plain file (mode 0666 less the umask; mkstemp's is 0600)
-    temporary = str(target.parent / f".{target.name}.{uuid.uuid4().hex}.tmp")
-    os.close(os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
-    try:
-        write_run_file(run, Path(temporary))
-        os.replace(temporary, target)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-    return target
-
-
-def load_run(path: str | os.PathLike[str], *, allow_nan: bool = False) -> MeasuredRun:
-    """Read one run from an HDF5 file in the documented format.
-
-    Args:
-        path: the file.
-        allow_nan: keep NaN samples in the accelerations (dropouts) instead of
-            refusing the file; :func:`validate_run` still reports them.
-
-    Raises:
-        MeasuredDataError: anything malformed, naming the file and the item.
-    """
-    from susp_bo.data._hdf5 import read_run_file
-
-    return read_run_file(Path(path), allow_nan=allow_nan)
-
-
-RUN_SUFFIXES = frozenset({".h5", ".hdf5"})
-"""Extensions of a measured-run file."""
-
-
-def run_paths(folder: str | os.PathLike[str]) -> list[Path]:
-    """The measured-run files (``*.h5``, ``*.hdf5``) directly in ``folder``, sorted by name;
-    empty for a folder that does not exist."""
-    directory = Path(folder)
-    if not directory.is_dir():
-        return []
-    return sorted(p for p in directory.iterdir() if p.suffix in RUN_SUFFIXES and p.is_file())
-
-
-def load_runs(
-    folder: str | os.PathLike[str],
-    channels: Sequence[str] | None = None,
-    *,
-    allow_nan: bool = False,
-) -> list[MeasuredRun]:
-    """Read every ``*.h5`` / ``*.hdf5`` run in ``folder``, sorted by file name.
-
-    Args:
-        folder: the folder.
-        channels: channels to keep (in this order); None requires every file to
-            have the first file's channel set and orders them as the first file.
-        allow_nan: as in :func:`load_run`.
-
-    Raises:
-        MeasuredDataError: no runs, an unreadable run, inconsistent channels, or
-            ``channels`` a str or empty.
-    """
-    if channels is not None:
-        channels = _channel_tuple(channels)
-    directory = Path(folder)
-    if not directory.is_dir():
-        raise MeasuredDataError(f"{directory}: not a folder of measured runs")
-    # named like a run but not a readable file (a folder, a broken link): refused, not
-    # skipped (outside probe, session 29: the study then said "needs 2 runs (found 1)")
-    odd = sorted(p for p in directory.iterdir() if p.suffix in RUN_SUFFIXES and not p.is_file())
-    if odd:
-        what = (
-            "a folder"
-            if odd[0].is_dir()
-            else "a link to nothing"
-            if odd[0].is_symlink()
-            else ("not a regular file")
-        )
-        raise MeasuredDataError(
-            f"{odd[0]}: named like a measured run but {what}; expected an HDF5 run file "
-            "(move it out of the data folder, or restore the file)"
-        )
-    paths = run_paths(directory)
-    if not paths:
-        raise MeasuredDataError(f"{directory}: holds no measured runs (*.h5, *.hdf5)")
-    runs = [load_run(p, allow_nan=allow_nan) for p in paths]
-    wanted = tuple(runs[0].channels) if channels is None else tuple(channels)
-    selected = []
-    for path, run in zip(paths, runs):
-        if channels is None and set(run.channels) != set(wanted):
-            raise MeasuredDataError(
-                f"{path}: channel set differs from {paths[0].name}: missing "
-                f"{sorted(set(wanted) - set(run.channels))}, extra "
-                f"{sorted(set(run.channels) - set(wanted))}"
-            )
-        try:
-            selected.append(run.select(wanted))
-        except MeasuredDataError as error:
-            raise MeasuredDataError(f"{path}: {error}") from None
-    return selected
-
-
 def runs_channels(runs: Sequence[MeasuredRun]) -> tuple[str, ...]:
     """The common channel tuple of runs that share one (as returned by :func:`load_runs`)."""
     if not runs:
@@ -546,3 +428,15 @@ def runs_channels(runs: Sequence[MeasuredRun]) -> tuple[str, ...]:
         if run.channels != first:
             raise MeasuredDataError(f"run {index}: channels {run.channels} differ from {first}")
     return first
+
+
+_RUN_FILE_NAMES = frozenset({"RUN_SUFFIXES", "load_run", "load_runs", "run_paths", "save_run"})
+"""Names that moved to :mod:`susp_bo.data.run_files`, still importable from here."""
+
+
+def __getattr__(name: str) -> Any:
+    """The run-file names, looked up on first use (PEP 562): :mod:`susp_bo.data.run_files`
+    imports this module, so importing them here at the top would be a cycle."""
+    if name in _RUN_FILE_NAMES:
+        return getattr(importlib.import_module("susp_bo.data.run_files"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -37,7 +37,8 @@ from pathlib import Path
 from typing import Any
 
 from susp_bo.calibration.study_inputs import import_hint
-from susp_bo.data.measured import RUN_SUFFIXES, MeasuredDataError, load_run, run_paths
+from susp_bo.data.measured import MeasuredDataError
+from susp_bo.data.run_files import RUN_SUFFIXES, load_run, run_paths
 from susp_bo.rig.toml_files import TomlFileError, read_toml
 
 logger = logging.getLogger(__name__)

@@ -29,7 +29,7 @@ import numpy as np
 import tomli_w
 
 from susp_bo.calibration.budget import budget_requirement
-from susp_bo.data.measured import save_run
+from susp_bo.data.run_files import save_run
 from susp_bo.data.synthetic import check_synthesis, synthesize_runs
 from susp_bo.monitoring.alarms import CampaignRecord, apply_alarms
 from susp_bo.monitoring.campaigns import MANIFEST_NAME, safe_name
