@@ -16,13 +16,13 @@ are the same profile delayed by ``x_a / V``.
   (FFT filtering of the axle inputs), for a like-for-like check against PyBullet.
 * :meth:`LinearisedRig.modes`: complex modes named by their dominant body motion.
 
-The matrices and the transfer functions are built in :mod:`susp_bo.rig.state_space`.
+The matrices and the transfer functions are built in :mod:`susp_bo.rig.state_space`; the
+modal solve and the naming of modes are :mod:`susp_bo.rig.linear_modal`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
@@ -31,6 +31,8 @@ from numpy.typing import NDArray
 from susp_bo.rig.assembly import INPUTS_PER_AXLE, build_assembly
 from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.linear_curving import CurvedLineMethods
+from susp_bo.rig.linear_modal import Mode as Mode  # re-exported: importable from here
+from susp_bo.rig.linear_modal import _label, _modal_basis, _ModalBasis, _solve_outputs
 from susp_bo.rig.response import RigResponse
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import Spectra, SpectrumSettings
@@ -39,25 +41,7 @@ from susp_bo.rig.track import AxleExcitation, TrackGeometry, TrackPSD
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
-_COORDINATE_MEANING = {
-    "y": "lateral",
-    "z": "bounce",
-    "roll": "roll",
-    "pitch": "pitch",
-    "yaw": "yaw",
-    "eta": "bending",
-}
 _PSD_COMPONENTS = ("vertical", "cross_level", "alignment")
-
-
-@dataclass(frozen=True)
-class Mode:
-    """A mode of the linearised vehicle: name by dominant motion, frequency, damping ratio."""
-
-    name: str
-    frequency_hz: float
-    damping_ratio: float
-    energy_share: float
 
 
 def _hann_kernel(offsets_hz: FloatArray, segment_s: float) -> FloatArray:
@@ -442,57 +426,6 @@ class LinearisedRig(CurvedLineMethods):
             sim.sample_rate_hz,
             self.spec.spectrum,
         )
-
-
-@dataclass(frozen=True)
-class _ModalBasis:
-    """``A = V diag(λ) V⁻¹``: eigenvalues (size,), eigenvectors V and V⁻¹ (size x size),
-    and whether V is well-conditioned enough to solve in modal coordinates."""
-
-    values: ComplexArray
-    vectors: ComplexArray
-    inverse: ComplexArray
-    well_conditioned: bool
-
-
-def _modal_basis(system: StateSpace) -> _ModalBasis:
-    """Eigen-decomposition of the state matrix, with its conditioning verdict."""
-    values, vectors = np.linalg.eig(system.a)
-    inverse = np.linalg.inv(vectors)
-    well = bool(np.max(np.abs(inverse)) * np.max(np.abs(vectors)) < 1e8)
-    return _ModalBasis(values, vectors, inverse, well)
-
-
-def _solve_outputs(
-    system: StateSpace,
-    basis: _ModalBasis,
-    rows: FloatArray,
-    spectrum: ComplexArray,
-    rate_spectrum: ComplexArray,
-    omega: FloatArray,
-) -> ComplexArray:
-    """Output spectra ``rows · z(ω)`` (m x F) of ``(iω - A) z = B X + B_d Ẋ``.
-
-    Solves in the modal coordinates of ``basis`` (fast); falls back to one solve per
-    frequency when the eigenvectors are ill-conditioned.
-    """
-    values, vectors, inverse = basis.values, basis.vectors, basis.inverse
-    if basis.well_conditioned:
-        modal = (inverse @ system.b) @ spectrum + (inverse @ system.b_rate) @ rate_spectrum
-        modal /= 1j * omega[None, :] - values[:, None]
-        return (rows @ vectors) @ modal
-    forcing = system.b @ spectrum + system.b_rate @ rate_spectrum  # (size x F)
-    size = system.a.shape[0]
-    lhs = 1j * omega[:, None, None] * np.eye(size)[None] - system.a[None]
-    states = np.linalg.solve(lhs, forcing.T[:, :, None])[:, :, 0].T
-    return rows @ states
-
-
-def _label(dof_name: str) -> str:
-    """``bogie_front.z`` -> ``bogie_bounce``: body kind and motion of a coordinate."""
-    body, coordinate = dof_name.split(".")
-    kind = "carbody" if body == "carbody" else body.split("_")[0]
-    return f"{kind}_{_COORDINATE_MEANING[coordinate]}"
 
 
 def _input_matrix(excitation: AxleExcitation, rates: bool = False) -> FloatArray:
