@@ -19,7 +19,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
-from susp_bo.data.importers import read_csv_run, read_mat_run
+from susp_bo.data.importers import read_csv_run
+from susp_bo.data.mat_files import read_mat_run
 from susp_bo.data.measured import MeasuredDataError, MeasuredRun
 
 ImportKind = Literal["csv", "mat"]
