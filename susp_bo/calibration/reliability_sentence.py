@@ -36,10 +36,11 @@ COMMAND_LINE_ADVICE = {
     "not_converged": "rerun with --resume --budget {more}",
     "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
-    "unmeasured_tracks": "measure each run's track and give it with the run (the "
-    "measured-data format's track geometry), then calibrate with [output_error] model = "
-    '"paired" and [search] local = true; no interval of this tool is calibrated on tracks '
-    "known only by their statistics",
+    "runs_not_reproduced": "if the runs' tracks were not measured, measure them and give "
+    "each with its run (the measured-data format's track geometry), then calibrate with "
+    '[output_error] model = "paired" and [search] local = true — no interval of this tool '
+    "is calibrated on tracks known only by their statistics; if they were, look for the "
+    "physics the model misses (the residuals of the best point, susp-bo diagnose)",
     "failed_region": "look at the failed evaluations (the log, evaluations.sqlite): narrow "
     "the admissible interval to where the simulator runs, or make the failing simulations "
     "run, then rerun",
@@ -75,9 +76,11 @@ PYTHON_ADVICE = {
     "not_converged": _MORE,
     "below_expected_fit": "look for physics the model misses (susp-bo diagnose examines a "
     "study's results folder); if the search may sit in a local optimum, " + _MORE,
-    "unmeasured_tracks": "simulate each run on its own measured track and calibrate with "
-    "the paired model (PairedOutputError, CalibrationSettings(local_search=True)); no "
-    "interval of this tool is calibrated on tracks known only by their statistics",
+    "runs_not_reproduced": "if the simulated tracks are not the runs' own, simulate each "
+    "run on its own measured track and calibrate with the paired model (PairedOutputError, "
+    "CalibrationSettings(local_search=True)) — no interval of this tool is calibrated on "
+    "tracks known only by their statistics; if they are, look for the physics the model "
+    "misses",
     "failed_region": "look at the failed evaluations (result.X where result.y is NaN): "
     "narrow the bounds to where the evaluator runs, or make the failing evaluations run, "
     "then rerun",

@@ -1,4 +1,4 @@
-"""Do the simulated tracks reproduce the measured runs? Where the unpaired model's intervals fail.
+"""Do the simulated runs reproduce the measured ones? Where the unpaired model's intervals fail.
 
 The unpaired output error (eq. 4, :mod:`.likelihood`) compares every measured run y_i with
 every simulated spectrum h(x_j, w), its σ_B the scatter between runs on different tracks.
@@ -24,8 +24,11 @@ at the best evaluated point ŵ: each run against the simulated spectrum nearest 
 when no simulated track is a run's own (0.84–1.35 measured on the SBC's data), and T ≈
 (sensor noise + model error)² / σ_B² ≪ 1 when each run's own track is among them (≤ 0.12
 on the same data at a best point several sd off the truth). Above :data:`LIMIT` the
-result is not trusted (``unmeasured_tracks``): no output-error model of this tool has
-calibrated intervals on tracks known only by their statistics.
+result is not trusted (``runs_not_reproduced``): no output-error model of this tool has
+calibrated intervals on tracks known only by their statistics. With the runs' own tracks,
+T that high means a model error as large as the scatter between tracks, which the
+unpaired B's scale would otherwise hide (:mod:`.lack_of_fit` looks at the part every
+run shares; this rule at the whole residual).
 """
 
 from __future__ import annotations
@@ -69,18 +72,19 @@ def track_match_ratio(measured: np.ndarray, simulated: np.ndarray, sigma: Any) -
     return float(np.mean(np.min(per_pair, axis=1)))
 
 
-def unmeasured_tracks(ratio: float, limit: float = LIMIT) -> Reason | None:
-    """``unmeasured_tracks`` when T = ``ratio`` exceeds ``limit``; None otherwise or NaN."""
+def runs_not_reproduced(ratio: float, limit: float = LIMIT) -> Reason | None:
+    """``runs_not_reproduced`` when T = ``ratio`` exceeds ``limit``; None otherwise or NaN."""
     if not math.isfinite(ratio) or ratio <= limit:
         return None
     return {
-        "code": "unmeasured_tracks",
+        "code": "runs_not_reproduced",
         "message": (
-            f"the simulated tracks do not reproduce the measured runs (T = {ratio:.2f}: runs "
-            f"on their own measured tracks give well below {limit:g}, other realizations of "
-            "the track process about 1): on tracks known only by their statistics the "
-            "unpaired model's intervals are too narrow (the truth up to 19 posterior sd "
-            "away in simulation-based calibration)"
+            f"no simulated run reproduces a measured run better than two runs on different "
+            f"tracks agree (T = {ratio:.2f}; runs simulated on their own measured tracks give "
+            f"well below the limit {limit:g}, other realizations of the track process about "
+            "1): either these are not the runs' own tracks — and on tracks known only by "
+            "their statistics the unpaired model's intervals are too narrow — or the model "
+            "misses an effect as large as the scatter between tracks"
         ),
         "track_match_ratio": float(ratio),
     }
@@ -93,7 +97,7 @@ def with_track_match(
 
     T is recorded as ``evidence["track_match_ratio"]`` (None when not computable); a result
     no other rule refused whose T exceeds :data:`LIMIT` becomes ``not_trusted``
-    (``unmeasured_tracks``). Under the paired B, or without spectra, ``result`` is
+    (``runs_not_reproduced``). Under the paired B, or without spectra, ``result`` is
     returned as it is.
 
     Args:
@@ -116,7 +120,7 @@ def with_track_match(
     evidence = dict(reliability.evidence) | {
         "track_match_ratio": None if math.isnan(ratio) else ratio
     }
-    reason = unmeasured_tracks(ratio) if reliability.trusted else None
+    reason = runs_not_reproduced(ratio) if reliability.trusted else None
     if reason is None:
         return dataclasses.replace(
             result, reliability=dataclasses.replace(reliability, evidence=evidence)

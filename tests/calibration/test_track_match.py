@@ -16,8 +16,8 @@ from susp_bo.calibration.paired_error import PairedOutputError
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.track_match import (
     LIMIT,
+    runs_not_reproduced,
     track_match_ratio,
-    unmeasured_tracks,
     with_track_match,
 )
 from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator
@@ -50,9 +50,9 @@ def test_t_is_each_runs_standardised_mean_square_against_its_nearest_simulated_r
 
 
 def test_the_rule_fires_above_the_limit_only() -> None:
-    assert unmeasured_tracks(LIMIT) is None and unmeasured_tracks(math.nan) is None
-    reason = unmeasured_tracks(0.93)
-    assert reason is not None and reason["code"] == "unmeasured_tracks"
+    assert runs_not_reproduced(LIMIT) is None and runs_not_reproduced(math.nan) is None
+    reason = runs_not_reproduced(0.93)
+    assert reason is not None and reason["code"] == "runs_not_reproduced"
     assert reason["track_match_ratio"] == 0.93 and "T = 0.93" in reason["message"]
 
 
@@ -98,9 +98,9 @@ def test_a_calibration_on_tracks_that_are_not_the_runs_own_is_not_trusted() -> N
     unknown = _Evaluator(data, elsewhere)
     result = calibrate(unknown, bounds, [_DAMPER], settings, progress=False, lack_of_fit=False)
     reliability = result.reliability
-    assert reliability is not None and reliability.codes == ("unmeasured_tracks",)
+    assert reliability is not None and reliability.codes == ("runs_not_reproduced",)
     assert reliability.evidence["track_match_ratio"] > 3 * LIMIT
-    assert reliability.sentence.startswith("Not trusted: the simulated tracks do not reproduce")
+    assert reliability.sentence.startswith("Not trusted: no simulated run reproduces")
     assert "PairedOutputError" in reliability.sentence
     lower, upper = result.summary.interval95[0]  # and it was wrong: [3.19, 3.47] MN·s/m
     assert not lower <= WORN_TRUTH[_DAMPER] <= upper
