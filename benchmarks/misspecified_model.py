@@ -8,10 +8,12 @@ model's — calibrated on q = 4 dampers (the worn truth of the scenarios) with t
 loop settings (local phase), paired or unpaired output error, as a study would (the log L
 expected at the truth passed, so ``below_expected_fit`` can fire). Each run prints the
 verdict *before* and *after* the lack-of-fit rule (:mod:`susp_bo.calibration.lack_of_fit`,
-which :func:`~susp_bo.calibration.loop.calibrate` applies), the truths inside their 95 %
-intervals, the largest |z| = |truth − mean| / sd, the largest bias in % of the true value,
-and F (weighted, as the rule uses it), F after the Gauss–Newton steps when they ran, and
-the equal-weight F of session 26 for comparison.
+which :func:`~susp_bo.calibration.loop.calibrate` applies; "before" has every other rule,
+since session 32 also ``runs_not_reproduced``), the truths inside their 95 % intervals,
+the largest |z| = |truth − mean| / sd, the largest bias in % of the true value, and F
+(weighted, as the rule uses it), F after the Gauss–Newton steps when they ran, the
+equal-weight F of session 26 for comparison, and T (:mod:`susp_bo.calibration.track_match`,
+unpaired B only).
 
 A result is *trusted and wrong* when it is ``trusted`` with some |z| > 3. Usage::
 
@@ -163,6 +165,7 @@ def run(change: str, error_model: str, seed: int, model_error: float | None) -> 
         "F": after.reliability.evidence.get("lack_of_fit_ratio"),
         "F_steps": after.reliability.evidence.get("lack_of_fit_after_steps"),
         "F_plain": after.reliability.evidence.get("lack_of_fit_unweighted"),
+        "T": after.reliability.evidence.get("track_match_ratio"),
     }
 
 
@@ -187,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--model-error: {args.model_error} must be a finite number > 0")
     print(
         "change                error            seed before       after        inside "
-        "max|z|  bias%      F F_steps F_plain  reasons",
+        "max|z|  bias%      F F_steps F_plain      T  reasons",
         flush=True,
     )
     wrong_before = wrong_after = 0
@@ -199,14 +202,14 @@ def main(argv: list[str] | None = None) -> int:
                 bad = row["max_z"] > 3.0
                 wrong_before += bad and row["before"] == "trusted"
                 wrong_after += bad and row["after"] == "trusted"
-                f, steps, plain = (
+                f, steps, plain, t = (
                     "   nan" if row[k] is None else f"{row[k]:6.2f}"
-                    for k in ("F", "F_steps", "F_plain")
+                    for k in ("F", "F_steps", "F_plain", "T")
                 )
                 print(
                     f"{row['change']:21s} {row['error']:16s} {seed:4d} {row['before']:12s} "
                     f"{row['after']:12s} {row['inside']:6s} {row['max_z']:6.1f} "
-                    f"{row['max_bias_pct']:6.2f} {f}  {steps}  {plain}  "
+                    f"{row['max_bias_pct']:6.2f} {f}  {steps}  {plain}  {t}  "
                     f"{row['reasons']}  ({time.perf_counter() - started:.0f} s)",
                     flush=True,
                 )
