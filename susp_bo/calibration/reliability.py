@@ -34,12 +34,11 @@ Rules (each a pure function of numbers, testable alone):
   is not the remedy; ``susp-bo diagnose`` accepts such a calibration (a finished
   fit that misses the data is exactly what it examines).
 - ``runs_not_reproduced`` (:func:`.track_match.runs_not_reproduced`, applied by
-  :func:`.loop.calibrate` under the unpaired B to a result no other rule refused): no
-  simulated run reproduces a measured run better than two runs on different tracks agree
-  (each run's residual against its nearest simulated spectrum is as large as the scatter
-  between runs): the tracks are not the runs' own — and on tracks known only by their
-  statistics the unpaired model's intervals are too narrow — or the model misses an
-  effect that large.
+  :func:`.loop.calibrate` under the unpaired B to a result no other rule refused): the
+  simulation leaves residuals on the scale of the scatter between runs on different
+  tracks (each run against its nearest simulated spectrum): the tracks are not the runs'
+  own — and on tracks known only by their statistics the unpaired model's intervals are
+  too narrow — or the model misses an effect that large.
 - ``failed_region`` (:func:`.failed_region.failed_region`): the posterior reaches where
   the simulator failed — a held-out check simulation at the posterior's edges failed, or more than
   ``share`` of the reported draws lie nearer (in the unit cube of C_w) to a failed
