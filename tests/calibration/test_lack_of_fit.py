@@ -18,9 +18,9 @@ from susp_bo.calibration.lack_of_fit import (
 )
 from susp_bo.calibration.likelihood import log_likelihood
 from susp_bo.calibration.loop import calibrate
-from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator
 from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_problem
+from tests.calibration.conftest import Q1_SETTINGS
 
 
 @pytest.mark.parametrize("runs", [2, 3, 6])
@@ -174,16 +174,7 @@ def test_a_calibration_of_data_from_another_vehicle_is_refused(
     )
     problem = synthesize_problem(spec, None, truth=truth, nu=3, seed=0, noise_m_s2=0.01)
     bounds = np.asarray(spec.calibration_bounds)[:, [spec.calibration_names.index(_DAMPER)]]
-    settings = CalibrationSettings(
-        seed=1,
-        max_evaluations=30,
-        initial_design_size=10,
-        batch_size=2,
-        check_points=2,
-        mcmc_chains=64,
-        mcmc_warmup=200,
-        mcmc_samples=200,
-    )
+    settings = Q1_SETTINGS
     evaluator = _DamperEvaluator(problem)
     result = calibrate(evaluator, bounds, [_DAMPER], settings, progress=False, lack_of_fit=False)
     checked = with_lack_of_fit(result, evaluator, problem.measured)
@@ -271,16 +262,7 @@ def test_a_calibration_on_one_run_says_its_lack_of_fit_was_not_checked() -> None
     spec = scenario_spec(duration_s=20.0, warm_up_s=4.0)
     problem = synthesize_problem(spec, None, truth=dict(WORN_TRUTH), nu=3, seed=0, noise_m_s2=0.01)
     bounds = np.asarray(spec.calibration_bounds)[:, [spec.calibration_names.index(_DAMPER)]]
-    settings = CalibrationSettings(
-        seed=1,
-        max_evaluations=24,
-        initial_design_size=10,
-        batch_size=2,
-        check_points=2,
-        mcmc_chains=64,
-        mcmc_warmup=200,
-        mcmc_samples=200,
-    )
+    settings = dataclasses.replace(Q1_SETTINGS, max_evaluations=24)
     result = calibrate(_OneRun(problem), bounds, [_DAMPER], settings, progress=False)
     reliability = result.reliability
     assert reliability is not None and reliability.evidence["lack_of_fit_ratio"] is None

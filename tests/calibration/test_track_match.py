@@ -13,7 +13,6 @@ import pytest
 from susp_bo.calibration.likelihood import log_likelihood
 from susp_bo.calibration.loop import calibrate
 from susp_bo.calibration.paired_error import PairedOutputError
-from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.track_match import (
     LIMIT,
     runs_not_reproduced,
@@ -22,6 +21,7 @@ from susp_bo.calibration.track_match import (
 )
 from susp_bo.discrepancy.problem import DiagnosisProblem, LinearSimulator
 from susp_bo.discrepancy.scenarios import WORN_TRUTH, scenario_spec, synthesize_problem
+from tests.calibration.conftest import Q1_SETTINGS
 
 _DAMPER = "yaw_damper_damping"
 
@@ -85,16 +85,7 @@ def test_a_calibration_on_tracks_that_are_not_the_runs_own_is_not_trusted() -> N
         spec, None, truth=dict(WORN_TRUTH), nu=3, seed=5, noise_m_s2=0.01
     )
     bounds = np.asarray(spec.calibration_bounds)[:, [spec.calibration_names.index(_DAMPER)]]
-    settings = CalibrationSettings(
-        seed=1,
-        max_evaluations=24,
-        initial_design_size=10,
-        batch_size=2,
-        check_points=2,
-        mcmc_chains=64,
-        mcmc_warmup=200,
-        mcmc_samples=200,
-    )
+    settings = dataclasses.replace(Q1_SETTINGS, max_evaluations=24)
     unknown = _Evaluator(data, elsewhere)
     result = calibrate(unknown, bounds, [_DAMPER], settings, progress=False, lack_of_fit=False)
     reliability = result.reliability
