@@ -326,14 +326,7 @@ def with_lack_of_fit(
         ratio = _after_gauss_newton_steps(result, evaluator, y, best, simulated, ratio, weights)
         evidence["lack_of_fit_after_steps"] = None if math.isnan(ratio) else ratio
     misfit = systematic_misfit(ratio, int(y.shape[0])) if reliability.trusted else None
-    if misfit is None:
-        return dataclasses.replace(
-            result, reliability=dataclasses.replace(reliability, evidence=evidence)
-        )
-    updated = dataclasses.replace(
-        reliability, verdict="not_trusted", reasons=(misfit,), evidence=evidence
-    )
-    return dataclasses.replace(result, reliability=updated.worded_for("python"))
+    return dataclasses.replace(result, reliability=reliability.with_rule(misfit, evidence))
 
 
 def _after_gauss_newton_steps(

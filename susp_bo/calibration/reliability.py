@@ -192,6 +192,20 @@ class Reliability:
         """The reason codes, in order."""
         return tuple(r["code"] for r in self.reasons)
 
+    def with_rule(
+        self, reason: Mapping[str, Any] | None, evidence: Mapping[str, Any]
+    ) -> Reliability:
+        """The verdict after a rule applied once the others had (the lack of fit, the
+        track match): ``evidence`` recorded and, when ``reason`` is not None, that reason
+        the only one of a now ``not_trusted`` verdict, its sentence in Python terms (a
+        study words it again)."""
+        if reason is None:
+            return dataclasses.replace(self, evidence=dict(evidence))
+        refused = dataclasses.replace(
+            self, verdict="not_trusted", reasons=(dict(reason),), evidence=dict(evidence)
+        )
+        return refused.worded_for("python")
+
     def worded_for(self, advice_for: AdviceFor) -> Reliability:
         """The same verdict with its sentence's advice in ``advice_for``'s terms."""
         return dataclasses.replace(self, sentence=sentence(self.reasons, self.evidence, advice_for))

@@ -125,11 +125,4 @@ def with_track_match(
         "track_match_ratio": None if math.isnan(ratio) else ratio
     }
     reason = runs_not_reproduced(ratio) if reliability.trusted else None
-    if reason is None:
-        return dataclasses.replace(
-            result, reliability=dataclasses.replace(reliability, evidence=evidence)
-        )
-    updated = dataclasses.replace(
-        reliability, verdict="not_trusted", reasons=(reason,), evidence=evidence
-    )
-    return dataclasses.replace(result, reliability=updated.worded_for("python"))
+    return dataclasses.replace(result, reliability=reliability.with_rule(reason, evidence))
