@@ -10,7 +10,8 @@
    ``residual_bands_untrusted_fit``, never as the answer. One exception: a
    calibration not trusted only because of ``below_expected_fit`` (the loop
    finished by its own criteria, but its best log L is far below what the
-   output-error model expects at the true parameters), possibly with ``at_bound``
+   output-error model expects at the true parameters) or ``runs_not_reproduced``
+   (residuals as large as the scatter between tracks), possibly with ``at_bound``
    (parameters pushed to C_w's bounds to make up for the missing physics), is a
    finished fit that misses the data — what this workflow is for — so it
    proceeds, and says so (``calibration_reliability.fit_finished``). The study file
@@ -280,7 +281,8 @@ def run_diagnose(args: argparse.Namespace) -> int:
         + (
             "; the calibration finished but does not reproduce the data as an exact model "
             "would (below_expected_fit: a fit worse than its output-error model expects at the "
-            "true parameters, or residuals every run shares): looking for what is missing"
+            "true parameters, or residuals every run shares; or runs_not_reproduced: "
+            "residuals as large as the scatter between tracks): looking for what is missing"
             if reliability.fit_finished and not reliability.trusted
             else ""
         ),
@@ -371,9 +373,11 @@ def augmented_model_note(
         return ""
     reasons = augmented_verdict.get("reasons", []) or []
     codes = ", ".join(str(r.get("code")) for r in reasons)
-    if len(reasons) == 1 and "lack_of_fit_ratio" in reasons[0]:
+    if len(reasons) == 1 and (
+        "lack_of_fit_ratio" in reasons[0] or "track_match_ratio" in reasons[0]
+    ):
         return (
-            " The augmented model's calibration is NOT trusted (below_expected_fit: "
+            f" The augmented model's calibration is NOT trusted ({reasons[0].get('code')}: "
             f"{reasons[0].get('message', '')}): the named effect does not explain all of "
             "the disagreement, and its parameter values are not an answer."
         )

@@ -404,15 +404,16 @@ class CalibrationReliability:
     @property
     def fit_finished(self) -> bool:
         """The fit is done: trusted, or not trusted only because it misses the data by more
-        than B allows (``below_expected_fit``), possibly with parameters pushed to a bound
-        of C_w (``at_bound``: what a model lacking physics often does to compensate) — the
-        loop finished by its own criteria, and what is left is what the discrepancy
+        than B allows (``below_expected_fit``) or by as much as the scatter between tracks
+        (``runs_not_reproduced``, the unpaired B), possibly with parameters pushed to a
+        bound of C_w (``at_bound``: what a model lacking physics often does to compensate)
+        — the loop finished by its own criteria, and what is left is what the discrepancy
         workflow examines. Any reason of an unfinished search or sampler keeps it out."""
         codes = {str(r.get("code")) for r in self.reasons}
         return self.trusted or (
             self.verdict == "not_trusted"
-            and BELOW_EXPECTED in codes
-            and codes <= {BELOW_EXPECTED, "at_bound"}
+            and bool(codes & set(MISFIT_CODES))
+            and codes <= {*MISFIT_CODES, "at_bound"}
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -427,6 +428,8 @@ class CalibrationReliability:
 
 
 BELOW_EXPECTED = "below_expected_fit"
+MISFIT_CODES = (BELOW_EXPECTED, "runs_not_reproduced")
+"""Reasons that say a finished fit misses the data (what ``susp-bo diagnose`` examines)."""
 """The reliability reason that alone does not stop the workflow (CalibrationReliability)."""
 
 

@@ -163,6 +163,15 @@ def test_a_named_effect_whose_recalibration_still_lacks_fit_does_not_explain_all
     note = augmented_model_note("named", "augmented", lacking, fit_finished=True)
     assert "the named effect does not explain all of the disagreement" in note
     assert "lack of fit F = 5.2" in note and "--budget" not in note
+    from susp_bo.calibration.track_match import runs_not_reproduced
+
+    unmatched = runs_not_reproduced(0.6)  # session 32: the unpaired B's misfit reason
+    assert unmatched is not None
+    note = augmented_model_note(
+        "named", "augmented", {"verdict": "not_trusted", "reasons": [unmatched]}, fit_finished=True
+    )
+    assert "(runs_not_reproduced: the simulation leaves residuals" in note
+    assert "does not explain all" in note and "--budget" not in note
     unconverged = {"verdict": "not_trusted", "reasons": [{"code": "not_converged"}, misfit]}
     other = augmented_model_note("named", "augmented", unconverged, fit_finished=True)
     assert "(not_converged, below_expected_fit)" in other and "larger --budget" in other

@@ -205,6 +205,9 @@ def test_naming_rule_refuses_bad_thresholds(kwargs) -> None:
         ("trusted", [], True),
         ("not_trusted", ["below_expected_fit"], True),
         ("not_trusted", ["below_expected_fit", "at_bound"], True),  # compensating parameters
+        ("not_trusted", ["runs_not_reproduced"], True),  # session 32: the unpaired B's misfit
+        ("not_trusted", ["runs_not_reproduced", "at_bound"], True),
+        ("not_trusted", ["poor_mixing", "runs_not_reproduced"], False),
         ("not_trusted", ["at_bound"], False),  # nothing says the model misses the data
         ("not_trusted", ["not_converged", "below_expected_fit"], False),  # unfinished search
         ("not_trusted", ["below_expected_fit", "surrogate_misfit"], False),
