@@ -27,11 +27,14 @@ Before the first evaluation the budget is checked against what q needs
 (:func:`.budget.budget_requirement`); a smaller one raises
 :class:`BudgetTooSmallError` unless ``settings.allow_small_budget``. After the MCMC
 the result gets its reliability verdict (:func:`.reliability.assess`); with an evaluator
-that exposes its spectra and the ν ≥ 2 measured runs (``spectra`` and ``measured``, as
-:class:`.evaluation.LikelihoodEvaluator` does), the verdict also weighs the lack of fit
-between the runs (:func:`.lack_of_fit.with_lack_of_fit`: a model that misses an effect
-every run shows), whoever calls — a study, ``susp-bo diagnose``'s recalibration or the
-Python API (session 27: before, only a study applied it).
+that exposes its spectra and the measured runs (``spectra`` and ``measured``, as
+:class:`.evaluation.LikelihoodEvaluator` does), the verdict also weighs, under the
+unpaired B, whether the simulated runs reproduce the measured ones at all
+(:func:`.track_match.with_track_match`: tracks that are not the runs' own, session 32),
+and the lack of fit between ν ≥ 2 runs (:func:`.lack_of_fit.with_lack_of_fit`: a model
+that misses an effect every run shows; with one run it is recorded as not checked),
+whoever calls — a study, ``susp-bo diagnose``'s recalibration or the Python API (session
+27: before, only a study applied it).
 
 Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
 for the surrogate they are imputed with the lowest finite log L observed so far
