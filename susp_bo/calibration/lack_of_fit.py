@@ -320,9 +320,7 @@ def with_lack_of_fit(
         "lack_of_fit_ratio": None if math.isnan(ratio) else ratio,
         "lack_of_fit_unweighted": None if math.isnan(plain) else plain,
     }
-    if math.isnan(ratio):  # no scatter between the runs, or weights that are not finite
-        return _unchecked(result, plain)
-    if reliability.trusted and ratio > LIMIT:
+    if reliability.trusted and ratio > LIMIT:  # False for NaN: no scatter, or bad weights
         ratio = _after_gauss_newton_steps(result, evaluator, y, best, simulated, ratio, weights)
         evidence["lack_of_fit_after_steps"] = None if math.isnan(ratio) else ratio
     misfit = systematic_misfit(ratio, int(y.shape[0])) if reliability.trusted else None
@@ -368,17 +366,13 @@ def _after_gauss_newton_steps(
     return smallest
 
 
-def _unchecked(result: CalibrationResult, plain: float = math.nan) -> CalibrationResult:
-    """``result`` with F recorded as not computed (None; the equal-weight F ``plain`` kept
-    when it was) and its verdict unchanged; a trusted sentence is worded again, to say so
-    (Python terms, as the rule words its own)."""
+def _unchecked(result: CalibrationResult) -> CalibrationResult:
+    """``result`` with F recorded as not computed (None) and its verdict unchanged (a
+    trusted sentence then says so, :meth:`.reliability.Reliability.with_rule`)."""
     reliability = result.reliability
     assert reliability is not None  # with_lack_of_fit returned early otherwise
     evidence = dict(reliability.evidence) | {
         "lack_of_fit_ratio": None,
-        "lack_of_fit_unweighted": None if math.isnan(plain) else plain,
+        "lack_of_fit_unweighted": None,
     }
-    updated = dataclasses.replace(reliability, evidence=evidence)
-    return dataclasses.replace(
-        result, reliability=updated.worded_for("python") if updated.trusted else updated
-    )
+    return dataclasses.replace(result, reliability=reliability.with_rule(None, evidence))

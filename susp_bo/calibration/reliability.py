@@ -198,9 +198,12 @@ class Reliability:
         """The verdict after a rule applied once the others had (the lack of fit, the
         track match): ``evidence`` recorded and, when ``reason`` is not None, that reason
         the only one of a now ``not_trusted`` verdict, its sentence in Python terms (a
-        study words it again)."""
+        study words it again). A verdict that stays trusted is worded again from the new
+        evidence (its caveats may change; a trusted sentence has no advice, so it reads the
+        same to every caller); one that stays not trusted keeps its sentence and wording."""
         if reason is None:
-            return dataclasses.replace(self, evidence=dict(evidence))
+            kept = dataclasses.replace(self, evidence=dict(evidence))
+            return kept.worded_for("python") if kept.trusted else kept
         refused = dataclasses.replace(
             self, verdict="not_trusted", reasons=(dict(reason),), evidence=dict(evidence)
         )

@@ -114,10 +114,9 @@ def with_track_match(
     reliability = result.reliability
     error = getattr(evaluator, "error", None)
     spectra = getattr(evaluator, "spectra", None)
-    finite = np.isfinite(result.y)
     if reliability is None or not isinstance(error, OutputError) or not callable(spectra):
         return result
-    if not np.any(finite):
+    if not np.any(np.isfinite(result.y)):
         return result
     best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
     ratio = track_match_ratio(measured, spectra(best[None])[0], error.sigma)
