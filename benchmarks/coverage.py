@@ -10,7 +10,11 @@ Each experiment e:
    GPyTorch kriging, BoTorch qLogEI, refinement, check, MH on the surrogate) with the
    demo's :class:`CalibrationSettings` (budget included), log L from the study's error
    model (``--error paired``, default, or ``unpaired``: eq. 4 with σ_B from the replicate
-   scatter, the model before issue 10) and the linearised rig on each run's own track;
+   scatter, the model before issue 10) and the linearised rig on each run's own track
+   (with ``--unknown-tracks``, on ν other realizations of the track process; there
+   ``--error statistics`` is the summary likelihood of
+   :mod:`susp_bo.calibration.track_statistics`, its two-stage pilot from
+   ``track_statistics_pilot.py``);
 4. records per parameter the truth's posterior quantile (fraction of draws below it),
    z = (mean − truth)/sd, whether the paper's 95 % interval holds the truth, and the
    truth's log L against the best evaluated one (did the search reach the maximum?).
@@ -141,6 +145,7 @@ from susp_bo.calibration.paired_error import (  # noqa: E402
     PairedOutputError,
     paired_expected_log_likelihood,
 )
+from susp_bo.calibration.track_statistics import TrackStatisticsError  # noqa: E402
 from susp_bo.commands.demo import DEMO_RIG  # noqa: E402
 from susp_bo.rig.spec import load_rig_spec  # noqa: E402
 
@@ -216,6 +221,8 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
     expected = (
         paired_expected_log_likelihood(problem.error, problem.measured)
         if isinstance(problem.error, PairedOutputError)
+        else at_truth
+        if isinstance(problem.error, TrackStatisticsError)
         else (math.nan, math.nan)
     )
     finite = np.isfinite(result.y)
@@ -250,6 +257,14 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
             {"model": "paired", "noise_m_s2": options.noise}
             if options.error == "paired"
             else {
+                "model": "statistics",
+                "pilot_runs": problem.error.pilot_runs,
+                "pilot_simulations": problem.pilot.simulations,
+                "pilot_point": list(problem.pilot.first_fit),
+                "shrinkage": problem.error.shrinkage,
+            }
+            if options.error == "statistics"
+            else {
                 "model": "unpaired",
                 "sigma": list(problem.error.sigma),
                 "unknown_tracks": options.unknown_tracks,
@@ -268,7 +283,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1, help="experiments in parallel")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--error", choices=("paired", "unpaired"), default="paired")
+    parser.add_argument(
+        "--error",
+        choices=("paired", "unpaired", "statistics"),
+        default="paired",
+        help="output-error model: paired, unpaired (eq. 4) or statistics (the summary "
+        "likelihood of susp_bo.calibration.track_statistics, with --unknown-tracks)",
+    )
     parser.add_argument("--budget", type=int, default=None, help="default: the demo's")
     parser.add_argument("--smoke", action="store_true", help="tiny budgets (tests)")
     parser.add_argument(
@@ -318,7 +339,8 @@ def main(argv: list[str] | None = None) -> int:
         "--unknown-tracks",
         action="store_true",
         help="the calibration simulates ν other realizations of the track process, not the "
-        "measured tracks (the unpaired model's own setting; needs --error unpaired)",
+        "measured tracks (the unpaired model's own setting; needs --error unpaired or "
+        "statistics)",
     )
     parser.add_argument(
         "--aggregate-only", action="store_true", help="figures of the finished experiments only"
@@ -339,10 +361,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--budget: got {args.budget}; expected >= 12")
     if args.reference_only and args.error != "paired":
         parser.error("--reference-only: the Laplace reference needs --error paired")
-    if args.unknown_tracks and args.error != "unpaired":
+    if args.error == "statistics" and not args.unknown_tracks:
+        parser.error("--error statistics: the summary model is for tracks known only by "
+                     "their statistics; give --unknown-tracks")  # fmt: skip
+    if args.unknown_tracks and args.error == "paired":
         parser.error(
             "--unknown-tracks: the paired model compares each run with its own track; "
-            "give --error unpaired"
+            "give --error unpaired or statistics"
         )
     options = Options(
         args.nu,

@@ -22,6 +22,10 @@ from susp_bo.calibration.likelihood import OutputError, estimate_output_error, l
 from susp_bo.calibration.loop import CalibrationSettings
 from susp_bo.calibration.paired_error import PairedOutputError, paired_log_likelihood
 from susp_bo.calibration.study import calibration_settings
+from susp_bo.calibration.track_statistics import (
+    TrackStatisticsError,
+    track_statistics_log_likelihood,
+)
 from susp_bo.commands.demo import demo_config
 from susp_bo.data.synthetic import track_seed
 from susp_bo.discrepancy.problem import LinearSimulator
@@ -175,15 +179,20 @@ class FastPathProblem:
                 for index in range(options.nu)
             ]
         self.tracks = tuple(tracks)  # what the model simulates: the measured tracks or not
-        self.error: PairedOutputError | OutputError
+        self.error: PairedOutputError | OutputError | TrackStatisticsError
+        self.simulator = LinearSimulator()
+        self.evaluations = 0
+        self.pilot = None
         if options.error == "paired":
             self.error = PairedOutputError(
                 options.noise, self.rate, tuple(n_samples), spec.spectrum
             )
+        elif options.error == "statistics":  # the summary likelihood, its pilot first
+            from track_statistics_pilot import two_stage_error
+
+            self.error, self.pilot = two_stage_error(self, seed)
         else:
             self.error = estimate_output_error(self.measured)
-        self.simulator = LinearSimulator()
-        self.evaluations = 0
 
     def simulated(self, w: np.ndarray) -> np.ndarray:
         """(ν x C x F) simulated spectra with the noise floor, run i on track i."""
@@ -193,10 +202,7 @@ class FastPathProblem:
 
     def log_l(self, w: np.ndarray) -> float:
         """log L at one parameter vector (physical units)."""
-        h = self.simulated(w)
-        if isinstance(self.error, PairedOutputError):
-            return float(paired_log_likelihood(self.measured, h, self.error))
-        return float(log_likelihood(self.measured, h, self.error))
+        return float(self.log_likelihood_of(self.simulated(w)[None])[0])
 
     def spectra(self, W: np.ndarray) -> np.ndarray:
         """(b x ν x C x F) simulated spectra of the rows of W (the local phase's input)."""
@@ -207,6 +213,8 @@ class FastPathProblem:
         """(b,) log L of (b x ν x C x F) spectra, no simulation."""
         if isinstance(self.error, PairedOutputError):
             value = paired_log_likelihood(self.measured, H, self.error, exact=exact)
+        elif isinstance(self.error, TrackStatisticsError):
+            value = track_statistics_log_likelihood(self.measured, H, self.error)
         else:
             value = log_likelihood(self.measured, H, self.error)
         return np.atleast_1d(np.asarray(value, dtype=np.float64))

@@ -44,6 +44,10 @@ import numpy as np
 from scipy.special import logsumexp
 
 from susp_bo.calibration.paired_error import PairedOutputError, paired_expected_log_likelihood
+from susp_bo.calibration.track_statistics import (
+    TrackStatisticsError,
+    track_statistics_expected_log_likelihood,
+)
 
 
 @dataclass(frozen=True)
@@ -276,7 +280,7 @@ def estimate_output_error(
 
 
 def expected_log_likelihood_at_truth(
-    error: OutputError | PairedOutputError,
+    error: OutputError | PairedOutputError | TrackStatisticsError,
     measured: np.ndarray,
     frequencies_hz: np.ndarray | None = None,
 ) -> tuple[float, float]:
@@ -293,13 +297,17 @@ def expected_log_likelihood_at_truth(
     Returns:
         ``(mean, sd)``. Paired: :func:`~.paired_error.paired_expected_log_likelihood`
         (exact to second order when the simulator is exact; nan when there is no sensor
-        noise, since then only the profiled model error is left). Unpaired: every pair
+        noise, since then only the profiled model error is left). Summary model of
+        tracks known only by their statistics:
+        :func:`~.track_statistics.track_statistics_expected_log_likelihood`. Unpaired: every pair
         residual y_i − h_j ~ N(0, Σ_B) gives log p_B = −½ (ln |2π Σ_B| + χ²_{CF}), so
         mean −½ ν (ln |2π Σ_B| + C F) and sd √(ν C F / 2); the mixture over the μ tracks
         adds at most ln μ per run (Jensen), so this mean is a lower bound to within that.
     """
     if isinstance(error, PairedOutputError):
         return paired_expected_log_likelihood(error, measured)
+    if isinstance(error, TrackStatisticsError):
+        return track_statistics_expected_log_likelihood(error)
     y = _check_spectra("measured", measured, error.n_channels)
     if y.ndim != 3:
         raise ValueError(f"measured: shape {y.shape}, expected (ν x C x F)")

@@ -1,0 +1,135 @@
+"""The summary likelihood's pilot on the linearised fast path (tracks known only by statistics).
+
+:mod:`susp_bo.calibration.track_statistics` needs, before the calibration, M pilot runs at
+a pilot point on fresh track realizations (with sensor noise) and the Jacobian of the
+simulated mean spectrum there. The pilot point should be near the truth (the summaries'
+weights A are the score direction there; C, what calibrates the intervals, is estimated
+at it), so the pilot runs twice (:func:`two_stage_error`):
+
+1. at the middle of C_w, then a Gauss–Newton fit of the q summaries from there
+   (:func:`summary_fit`: q equations in q unknowns, each step q + 1 points x μ runs);
+2. again at that fit's point, on new track realizations: the error the calibration uses.
+
+The pilot's simulations are not part of the loop's budget (they are counted in
+``PilotRecord.simulations``). Used by ``coverage.py --error statistics`` through
+:class:`fast_path.FastPathProblem`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from susp_bo.calibration.track_statistics import (
+    MINIMUM_PILOT_RUNS_PER_PARAMETER,
+    TrackStatisticsError,
+    summary_residuals,
+    track_statistics_error,
+)
+from susp_bo.rig.linear import LinearisedRig
+from susp_bo.rig.simulator import synthetic_track
+from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.spectra import log_amplitude_spectra
+
+PILOT_RUNS = 100
+"""M (the prototype's value; at least MINIMUM_PILOT_RUNS_PER_PARAMETER x q)."""
+STEP = 1e-4  # unit-cube step of the finite differences
+
+
+@dataclasses.dataclass(frozen=True)
+class PilotRecord:
+    """What the two-stage pilot did (recorded in the SBC's experiment records)."""
+
+    first_fit: tuple[float, ...]
+    """(q,) the first stage's fit (unit coordinates of C_w): the second pilot point."""
+    simulations: int
+    """Simulator runs the pilot spent (pilot runs and Gauss–Newton points x μ)."""
+    shrinkage: float
+
+
+def pilot_spectra(
+    spec: RigSpec, w: np.ndarray, runs: int, seed: int, noise_m_s2: float
+) -> np.ndarray:
+    """(M x C x F) spectra at ``w`` on M fresh track realizations, with sensor noise."""
+    sim = spec.simulation
+    rig = LinearisedRig(spec.with_parameters(dict(zip(spec.calibration_names, w.tolist()))))
+    out = []
+    for m in range(runs):
+        track_seed = int(np.random.SeedSequence([seed, m, 17]).generate_state(1)[0])
+        response = rig.response(
+            synthetic_track(spec, seed=track_seed),
+            sim.speed_m_s,
+            time_step_s=1.0 / sim.sample_rate_hz,
+        )
+        signals = np.array(response.accelerations_m_s2, dtype=np.float64)
+        if noise_m_s2 > 0:
+            signals = signals + np.random.default_rng([seed, m, 19]).normal(
+                0.0, noise_m_s2, signals.shape
+            )
+        spectra = log_amplitude_spectra(
+            signals, sim.sample_rate_hz, response.channels, spec.spectrum
+        )
+        out.append(spectra.log_amplitude)
+    return np.stack(out)
+
+
+def mean_jacobian(problem, u: np.ndarray) -> np.ndarray:
+    """(q x C x F) central differences of the simulated mean spectrum at u (unit cube)."""
+    bounds = problem.spec.calibration_bounds
+    span = bounds[1] - bounds[0]
+    columns = []
+    for k in range(len(u)):
+        plus, minus = u.copy(), u.copy()
+        plus[k], minus[k] = min(u[k] + STEP, 1.0), max(u[k] - STEP, 0.0)
+        h = problem.spectra(bounds[0] + np.stack([plus, minus]) * span).mean(axis=1)
+        columns.append((h[0] - h[1]) / (plus[k] - minus[k]))
+    return np.stack(columns)
+
+
+def pilot_error(problem, u: np.ndarray, runs: int, seed: int) -> TrackStatisticsError:
+    """The summary error with its pilot at u (unit coordinates)."""
+    bounds = problem.spec.calibration_bounds
+    w = bounds[0] + u * (bounds[1] - bounds[0])
+    pilot = pilot_spectra(problem.spec, w, runs, seed, problem.options.noise)
+    return track_statistics_error(
+        pilot, mean_jacobian(problem, u), len(problem.measured), len(problem.tracks)
+    )
+
+
+def summary_fit(
+    problem, error: TrackStatisticsError, u0: np.ndarray, iterations: int = 12
+) -> np.ndarray:
+    """Gauss–Newton on the whitened summary residuals from u0, kept in [0, 1]^q."""
+    bounds = problem.spec.calibration_bounds
+    span = bounds[1] - bounds[0]
+    u = np.asarray(u0, dtype=np.float64).copy()
+    for _ in range(iterations):
+        steps = np.where(u + STEP <= 1.0, STEP, -STEP)  # one-sided at the upper face
+        points = np.vstack([u, u + np.diag(steps)])
+        residuals = summary_residuals(
+            problem.measured, problem.spectra(bounds[0] + points * span), error
+        )
+        jac = (residuals[1:] - residuals[0]).T / steps
+        step = np.linalg.lstsq(jac, -residuals[0], rcond=None)[0]
+        moved = np.clip(u + step, 0.0, 1.0)
+        if np.max(np.abs(moved - u)) < 1e-7:
+            return moved
+        u = moved
+    return u
+
+
+def two_stage_error(
+    problem, seed: int, runs: int = PILOT_RUNS
+) -> tuple[TrackStatisticsError, PilotRecord]:
+    """The two-stage pilot (module docstring); returns the error and what it did."""
+    q = len(problem.names)
+    runs = max(runs, MINIMUM_PILOT_RUNS_PER_PARAMETER * q)
+    before = problem.evaluations
+    first = pilot_error(problem, np.full(q, 0.5), runs, seed)
+    u1 = summary_fit(problem, first, np.full(q, 0.5))
+    error = pilot_error(problem, u1, runs, seed + 1)
+    mu = len(problem.tracks)
+    spent = 2 * runs + (problem.evaluations - before) * mu
+    problem.evaluations = before  # the pilot is not the loop's budget
+    return error, PilotRecord(tuple(u1.tolist()), spent, error.shrinkage)
