@@ -18,6 +18,7 @@ The pilot's simulations are not part of the loop's budget (they are counted in
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
@@ -87,31 +88,46 @@ def mean_jacobian(problem, u: np.ndarray) -> np.ndarray:
     return np.stack(columns)
 
 
-def pilot_error(problem, u: np.ndarray, runs: int, seed: int) -> TrackStatisticsError:
+def linear_pilot(problem, w: np.ndarray, runs: int, seed: int) -> np.ndarray:
+    """The fast path's pilot runs: :func:`pilot_spectra` with the problem's rig and noise."""
+    return pilot_spectra(problem.spec, w, runs, seed, problem.options.noise)
+
+
+def pilot_error(
+    problem, u: np.ndarray, runs: int, seed: int, simulate_pilot: Callable = linear_pilot
+) -> TrackStatisticsError:
     """The summary error with its pilot at u (unit coordinates)."""
     bounds = problem.spec.calibration_bounds
     w = bounds[0] + u * (bounds[1] - bounds[0])
-    pilot = pilot_spectra(problem.spec, w, runs, seed, problem.options.noise)
+    pilot = simulate_pilot(problem, w, runs, seed)
     return track_statistics_error(
         pilot, mean_jacobian(problem, u), len(problem.measured), len(problem.tracks)
     )
+
+
+def whitened_jacobian(
+    problem, error: TrackStatisticsError, u: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(r, J): the whitened summary residuals at u (q,) and their forward-difference
+    Jacobian along the unit coordinates (q x q), one-sided inwards at the upper face."""
+    bounds = problem.spec.calibration_bounds
+    span = bounds[1] - bounds[0]
+    steps = np.where(u + STEP <= 1.0, STEP, -STEP)
+    points = np.vstack([u, u + np.diag(steps)])
+    residuals = summary_residuals(
+        problem.measured, problem.spectra(bounds[0] + points * span), error
+    )
+    return residuals[0], (residuals[1:] - residuals[0]).T / steps
 
 
 def summary_fit(
     problem, error: TrackStatisticsError, u0: np.ndarray, iterations: int = 12
 ) -> np.ndarray:
     """Gauss–Newton on the whitened summary residuals from u0, kept in [0, 1]^q."""
-    bounds = problem.spec.calibration_bounds
-    span = bounds[1] - bounds[0]
     u = np.asarray(u0, dtype=np.float64).copy()
     for _ in range(iterations):
-        steps = np.where(u + STEP <= 1.0, STEP, -STEP)  # one-sided at the upper face
-        points = np.vstack([u, u + np.diag(steps)])
-        residuals = summary_residuals(
-            problem.measured, problem.spectra(bounds[0] + points * span), error
-        )
-        jac = (residuals[1:] - residuals[0]).T / steps
-        step = np.linalg.lstsq(jac, -residuals[0], rcond=None)[0]
+        residual, jac = whitened_jacobian(problem, error, u)
+        step = np.linalg.lstsq(jac, -residual, rcond=None)[0]
         moved = np.clip(u + step, 0.0, 1.0)
         if np.max(np.abs(moved - u)) < 1e-7:
             return moved
@@ -120,15 +136,19 @@ def summary_fit(
 
 
 def two_stage_error(
-    problem, seed: int, runs: int = PILOT_RUNS
+    problem, seed: int, runs: int = PILOT_RUNS, simulate_pilot: Callable = linear_pilot
 ) -> tuple[TrackStatisticsError, PilotRecord]:
-    """The two-stage pilot (module docstring); returns the error and what it did."""
+    """The two-stage pilot (module docstring); returns the error and what it did.
+
+    ``simulate_pilot(problem, w, runs, seed) -> (runs x C x F)``: spectra at w (physical
+    units) on ``runs`` fresh track realizations with sensor noise.
+    """
     q = len(problem.names)
     runs = max(runs, MINIMUM_PILOT_RUNS_PER_PARAMETER * q)
     before = problem.evaluations
-    first = pilot_error(problem, np.full(q, 0.5), runs, seed)
+    first = pilot_error(problem, np.full(q, 0.5), runs, seed, simulate_pilot)
     u1 = summary_fit(problem, first, np.full(q, 0.5))
-    error = pilot_error(problem, u1, runs, seed + 1)
+    error = pilot_error(problem, u1, runs, seed + 1, simulate_pilot)
     mu = len(problem.tracks)
     spent = 2 * runs + (problem.evaluations - before) * mu
     problem.evaluations = before  # the pilot is not the loop's budget
