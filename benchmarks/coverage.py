@@ -261,6 +261,7 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
                 "pilot_runs": problem.error.pilot_runs,
                 "pilot_simulations": problem.pilot.simulations,
                 "pilot_point": list(problem.pilot.first_fit),
+                "pilot_fit_converged": problem.pilot.converged,
                 "shrinkage": problem.error.shrinkage,
             }
             if options.error == "statistics"

@@ -11,7 +11,10 @@ at it), so the pilot runs twice (:func:`two_stage_error`):
 2. again at that fit's point, on new track realizations: the error the calibration uses.
 
 The pilot's simulations are not part of the loop's budget (they are counted in
-``PilotRecord.simulations``). Used by ``coverage.py --error statistics`` through
+``PilotRecord.simulations``). The second pilot point comes from a fit to the measured data,
+so A and C depend (weakly, at second order) on the data; the SBC measures the whole
+procedure, that included. A fit that has not converged after its iterations is recorded
+(``PilotRecord.converged``), not hidden. Used by ``coverage.py --error statistics`` through
 :class:`fast_path.FastPathProblem`.
 """
 
@@ -23,8 +26,8 @@ from collections.abc import Callable
 import numpy as np
 
 from susp_bo.calibration.track_statistics import (
-    MINIMUM_PILOT_RUNS_PER_PARAMETER,
     TrackStatisticsError,
+    minimum_pilot_runs,
     summary_residuals,
     track_statistics_error,
 )
@@ -34,7 +37,7 @@ from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.spectra import log_amplitude_spectra
 
 PILOT_RUNS = 100
-"""M (the prototype's value; at least MINIMUM_PILOT_RUNS_PER_PARAMETER x q)."""
+"""M (the prototype's value; at least :func:`minimum_pilot_runs` (q))."""
 STEP = 1e-4  # unit-cube step of the finite differences
 
 
@@ -47,6 +50,8 @@ class PilotRecord:
     simulations: int
     """Simulator runs the pilot spent (pilot runs and Gauss–Newton points x μ)."""
     shrinkage: float
+    converged: bool = True
+    """Whether the first stage's Gauss–Newton fit met its step tolerance."""
 
 
 def pilot_spectra(
@@ -122,17 +127,20 @@ def whitened_jacobian(
 
 def summary_fit(
     problem, error: TrackStatisticsError, u0: np.ndarray, iterations: int = 12
-) -> np.ndarray:
-    """Gauss–Newton on the whitened summary residuals from u0, kept in [0, 1]^q."""
+) -> tuple[np.ndarray, bool]:
+    """Gauss–Newton on the whitened summary residuals from u0, kept in [0, 1]^q.
+
+    Returns ``(u, converged)``: the last point and whether a step fell below 1e-7.
+    """
     u = np.asarray(u0, dtype=np.float64).copy()
     for _ in range(iterations):
         residual, jac = whitened_jacobian(problem, error, u)
         step = np.linalg.lstsq(jac, -residual, rcond=None)[0]
         moved = np.clip(u + step, 0.0, 1.0)
         if np.max(np.abs(moved - u)) < 1e-7:
-            return moved
+            return moved, True
         u = moved
-    return u
+    return u, False
 
 
 def two_stage_error(
@@ -144,12 +152,12 @@ def two_stage_error(
     units) on ``runs`` fresh track realizations with sensor noise.
     """
     q = len(problem.names)
-    runs = max(runs, MINIMUM_PILOT_RUNS_PER_PARAMETER * q)
+    runs = max(runs, minimum_pilot_runs(q))
     before = problem.evaluations
     first = pilot_error(problem, np.full(q, 0.5), runs, seed, simulate_pilot)
-    u1 = summary_fit(problem, first, np.full(q, 0.5))
+    u1, converged = summary_fit(problem, first, np.full(q, 0.5))
     error = pilot_error(problem, u1, runs, seed + 1, simulate_pilot)
     mu = len(problem.tracks)
     spent = 2 * runs + (problem.evaluations - before) * mu
     problem.evaluations = before  # the pilot is not the loop's budget
-    return error, PilotRecord(tuple(u1.tolist()), spent, error.shrinkage)
+    return error, PilotRecord(tuple(u1.tolist()), spent, error.shrinkage, converged)

@@ -129,7 +129,7 @@ def experiment(args: tuple[int, int, int, Path]) -> dict:
     _, data_seed = sbc_draw(seed, index, len(truth))
     problem = PyBulletProblem(spec, truth, data_seed)
     error, pilot = two_stage_error(problem, data_seed + PILOT_SEED, runs, pybullet_pilot)
-    u = summary_fit(problem, error, np.array(pilot.first_fit))
+    u, converged = summary_fit(problem, error, np.array(pilot.first_fit))
     _, jac = whitened_jacobian(problem, error, u)
     sd = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac)))
     z = (u - u_true) / sd
@@ -140,6 +140,8 @@ def experiment(args: tuple[int, int, int, Path]) -> dict:
         "fit": u.tolist(),
         "truth": u_true.tolist(),
         "at_bound": bool(np.any((u <= 0.0) | (u >= 1.0))),
+        "fit_converged": converged,
+        "first_fit_converged": pilot.converged,
         "pilot_simulations": pilot.simulations,
         "shrinkage": pilot.shrinkage,
         "seconds": time.perf_counter() - started,
