@@ -38,9 +38,11 @@ COMMAND_LINE_ADVICE = {
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
     "runs_not_reproduced": "if the runs' tracks were not measured, measure them and give "
     "each with its run (the measured-data format's track geometry), then calibrate with "
-    '[output_error] model = "paired" and [search] local = true — no interval of this tool '
-    "is calibrated on tracks known only by their statistics; if they were, look for the "
-    "physics the model misses (the residuals of the best point, susp-bo diagnose)",
+    '[output_error] model = "paired" and [search] local = true — eq. 4\'s intervals are '
+    "not calibrated on tracks known only by their statistics (the summary likelihood of "
+    "susp_bo.calibration.track_statistics is, from the Python API, for an exact model); if "
+    "they were, look for the physics the model misses (the residuals of the best point, "
+    "susp-bo diagnose)",
     "failed_region": "look at the failed evaluations (the log, evaluations.sqlite): narrow "
     "the admissible interval to where the simulator runs, or make the failing simulations "
     "run, then rerun",
@@ -78,9 +80,10 @@ PYTHON_ADVICE = {
     "study's results folder); if the search may sit in a local optimum, " + _MORE,
     "runs_not_reproduced": "if the simulated tracks are not the runs' own, simulate each "
     "run on its own measured track and calibrate with the paired model (PairedOutputError, "
-    "CalibrationSettings(local_search=True)) — no interval of this tool is calibrated on "
-    "tracks known only by their statistics; if they are, look for the physics the model "
-    "misses",
+    "CalibrationSettings(local_search=True)), or, if the tracks cannot be measured, use "
+    "the summary likelihood (susp_bo.calibration.track_statistics), calibrated on tracks "
+    "known only by their statistics for an exact model; if they are, look for the physics "
+    "the model misses",
     "failed_region": "look at the failed evaluations (result.X where result.y is NaN): "
     "narrow the bounds to where the evaluator runs, or make the failing evaluations run, "
     "then rerun",

@@ -32,8 +32,9 @@ at the truth, 8 truths from the prior, ν = 3, noise 0.005 m/s²): 0.004–0.007
 runs' own tracks (0.009–0.015 with every parameter 2 % off), 0.76–1.09 with other
 realizations; data with a carbody bending mode the model lacks 1.39–3.53, a conicity of
 0.15 against the model's 0.10 0.09–0.38 (3 of 8 above the limit). Above :data:`LIMIT` the
-result is not trusted (``runs_not_reproduced``): no output-error model of this tool has
-calibrated intervals on tracks known only by their statistics. With the runs' own tracks,
+result is not trusted (``runs_not_reproduced``): eq. 4's intervals are not calibrated on
+tracks known only by their statistics (:mod:`.track_statistics` is the model for them,
+since session 33). With the runs' own tracks,
 T that high means a model error as large as the scatter between tracks, which the
 unpaired B's scale would otherwise hide (:mod:`.lack_of_fit` looks at the part every
 run shares; this rule at the whole residual).
