@@ -54,7 +54,7 @@ from track_statistics_pilot import (  # noqa: E402
 )
 
 from susp_bo.calibration.evaluation import simulate_spectra  # noqa: E402
-from susp_bo.calibration.study_inputs import design_removal  # noqa: E402
+from susp_bo.calibration.study_inputs import measured_log_spectra  # noqa: E402
 from susp_bo.commands.demo import DEMO_RIG  # noqa: E402
 from susp_bo.data.synthetic import synthesize_runs, track_seed  # noqa: E402
 from susp_bo.rig.simulator import synthetic_track  # noqa: E402
@@ -68,13 +68,6 @@ OTHER_TRACKS = 10_000  # added to the data seed for the model's track realizatio
 PILOT_SEED = 20_000  # added to the data seed for the pilot's
 
 
-def run_spectra(spec: RigSpec, runs) -> np.ndarray:
-    """(n x C x F) log-amplitude spectra of runs, as a study computes the measured ones."""
-    return np.stack(
-        [run.spectra(spec.spectrum, design_removal(spec, run)).log_amplitude for run in runs]
-    )
-
-
 class PyBulletProblem:
     """ν PyBullet runs of one truth; the model on μ = ν other track realizations."""
 
@@ -85,7 +78,7 @@ class PyBulletProblem:
             spec, dict(zip(self.names, truth.tolist())), nu=NU, seed=data_seed,
             noise_m_s2=NOISE_M_S2,
         )  # fmt: skip
-        self.measured = run_spectra(spec, runs)
+        self.measured = measured_log_spectra(spec, runs)
         self.rate = runs[0].sample_rate_hz
         sim = spec.simulation
         speed = SpeedProfile.constant(sim.speed_m_s, sim.warm_up_s + sim.duration_s)
@@ -112,7 +105,7 @@ def pybullet_pilot(problem: PyBulletProblem, w: np.ndarray, runs: int, seed: int
         problem.spec, dict(zip(problem.names, w.tolist())), nu=runs, seed=seed,
         noise_m_s2=NOISE_M_S2,
     )  # fmt: skip
-    return run_spectra(problem.spec, pilot)
+    return measured_log_spectra(problem.spec, pilot)
 
 
 def experiment(args: tuple[int, int, int, Path]) -> dict:

@@ -11,7 +11,7 @@ part that is taken off the measured accelerations before their spectra.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -236,6 +236,18 @@ def store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
         f"({fingerprint_change(str(error.stored), str(error.current))}); resume with the "
         "same rig, data, parameters (in the same order) and output error, or give a new "
         "output folder"
+    )
+
+
+def measured_log_spectra(spec: RigSpec, runs: Sequence[MeasuredRun]) -> np.ndarray:
+    """(ν x C x F) log-amplitude spectra of measured runs on the rig's spectrum settings,
+    each run's design force removed first (:func:`design_removal`), as a study compares them.
+
+    Raises:
+        ValueError: a run the spectrum settings cannot analyse (too short, for example).
+    """
+    return np.stack(
+        [run.spectra(spec.spectrum, design_removal(spec, run)).log_amplitude for run in runs]
     )
 
 

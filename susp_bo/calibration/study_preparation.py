@@ -26,8 +26,8 @@ from susp_bo.calibration.study_inputs import (
     check_budget,
     check_runs_rig,
     check_sigma_table,
-    design_removal,
     import_hint,
+    measured_log_spectra,
     reference_parameters,
     run_names,
     sensor_noise,
@@ -261,9 +261,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     if problem is not None:  # every simulation of it would be refused, one by one
         raise StudyError(problem)
     try:
-        measured = np.stack(
-            [run.spectra(spec.spectrum, design_removal(spec, run)).log_amplitude for run in runs]
-        )
+        measured = measured_log_spectra(spec, runs)
     except ValueError as error:
         raise StudyError(f"data: {error}") from error
     tracks = tuple(
