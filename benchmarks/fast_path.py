@@ -133,6 +133,30 @@ def laplace_at_truth(
     return shifted, information, width
 
 
+def linear_run(
+    rig: LinearisedRig,
+    spec: RigSpec,
+    geometry,
+    noise_m_s2: float,
+    noise_key: list[int],
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """One measured run on the linearised rig at the spec's speed and sampling rate.
+
+    Returns ``(spectra, clean, channels)``: the (C x F) log-amplitude spectra of the
+    accelerations plus white sensor noise of ``noise_m_s2`` m/s² rms (drawn from
+    ``default_rng(noise_key)``; none at 0), the noise-free (C x n_t) accelerations (m/s²)
+    and the channel names.
+    """
+    sim = spec.simulation
+    response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / sim.sample_rate_hz)
+    clean = np.array(response.accelerations_m_s2, dtype=np.float64)
+    signals = clean
+    if noise_m_s2 > 0:
+        signals = clean + np.random.default_rng(noise_key).normal(0.0, noise_m_s2, clean.shape)
+    spectra = log_amplitude_spectra(signals, sim.sample_rate_hz, response.channels, spec.spectrum)
+    return spectra.log_amplitude, clean, tuple(response.channels)
+
+
 class FastPathProblem:
     """Synthetic runs of one truth and ``evaluate(W) -> log L`` on the linearised rig.
 
@@ -153,20 +177,16 @@ class FastPathProblem:
         measured, tracks, n_samples, clean = [], [], [], []
         for index in range(options.nu):
             geometry = synthetic_track(true_spec, seed=track_seed(seed, index))
-            response = rig.response(geometry, sim.speed_m_s, time_step_s=1.0 / self.rate)
-            clean.append(np.array(response.accelerations_m_s2, dtype=np.float64))
-            signals = clean[-1]
-            if options.noise > 0:
-                signals = signals + np.random.default_rng([seed, index, 2]).normal(
-                    0.0, options.noise, signals.shape
-                )
-            spectra = log_amplitude_spectra(signals, self.rate, response.channels, spec.spectrum)
-            measured.append(spectra.log_amplitude)
+            spectra, signals, channels = linear_run(
+                rig, spec, geometry, options.noise, [seed, index, 2]
+            )
+            clean.append(signals)
+            measured.append(spectra)
             tracks.append(TrackRun(f"run{index:03d}", geometry, profile))
             n_samples.append(signals.shape[1])
         self.measured = np.stack(measured)
         self.clean_signals = tuple(clean)  # (ν,) noise-free (C x n_t) m/s², run i on track i
-        self.channels = tuple(response.channels)
+        self.channels = channels
         self.measured_tracks = tuple(tracks)
         if options.unknown_tracks:  # the unpaired model's own setting: only the track's
             # statistics are known, so the model simulates ν other realizations of them

@@ -24,6 +24,7 @@ import dataclasses
 from collections.abc import Callable
 
 import numpy as np
+from fast_path import linear_run
 
 from susp_bo.calibration.track_statistics import (
     TrackStatisticsError,
@@ -34,7 +35,6 @@ from susp_bo.calibration.track_statistics import (
 from susp_bo.rig.linear import LinearisedRig
 from susp_bo.rig.simulator import synthetic_track
 from susp_bo.rig.spec import RigSpec
-from susp_bo.rig.spectra import log_amplitude_spectra
 
 PILOT_RUNS = 100
 """M (the prototype's value; at least :func:`minimum_pilot_runs` (q))."""
@@ -58,25 +58,12 @@ def pilot_spectra(
     spec: RigSpec, w: np.ndarray, runs: int, seed: int, noise_m_s2: float
 ) -> np.ndarray:
     """(M x C x F) spectra at ``w`` on M fresh track realizations, with sensor noise."""
-    sim = spec.simulation
     rig = LinearisedRig(spec.with_parameters(dict(zip(spec.calibration_names, w.tolist()))))
     out = []
     for m in range(runs):
         track_seed = int(np.random.SeedSequence([seed, m, 17]).generate_state(1)[0])
-        response = rig.response(
-            synthetic_track(spec, seed=track_seed),
-            sim.speed_m_s,
-            time_step_s=1.0 / sim.sample_rate_hz,
-        )
-        signals = np.array(response.accelerations_m_s2, dtype=np.float64)
-        if noise_m_s2 > 0:
-            signals = signals + np.random.default_rng([seed, m, 19]).normal(
-                0.0, noise_m_s2, signals.shape
-            )
-        spectra = log_amplitude_spectra(
-            signals, sim.sample_rate_hz, response.channels, spec.spectrum
-        )
-        out.append(spectra.log_amplitude)
+        track = synthetic_track(spec, seed=track_seed)
+        out.append(linear_run(rig, spec, track, noise_m_s2, [seed, m, 19])[0])
     return np.stack(out)
 
 
