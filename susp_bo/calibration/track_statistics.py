@@ -71,6 +71,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
@@ -179,10 +180,15 @@ class TrackStatisticsError:
         """κ = 1/ν + 1/μ: the variance of ȳ − h̄ in units of one run's."""
         return 1.0 / self.n_measured + 1.0 / self.n_simulated
 
-    @property
+    @cached_property
     def cholesky(self) -> np.ndarray:
-        """(q x q) lower Cholesky factor of κ C."""
+        """(q x q) lower Cholesky factor of κ C (computed once)."""
         return np.linalg.cholesky(self.scale * self.covariance)
+
+    @cached_property
+    def log_det(self) -> float:
+        """ln |κ C| (computed once)."""
+        return 2.0 * float(np.sum(np.log(np.diag(self.cholesky))))
 
 
 def track_statistics_error(
@@ -295,13 +301,11 @@ def track_statistics_log_likelihood(
     :func:`summary_residuals`; a float, or (b,) for batched ``simulated``."""
     z = summary_residuals(measured, simulated, error)
     q = z.shape[-1]
-    log_det = 2.0 * float(np.sum(np.log(np.diag(error.cholesky))))
-    value = -0.5 * np.sum(z**2, axis=-1) - 0.5 * (log_det + q * math.log(2.0 * math.pi))
+    value = -0.5 * np.sum(z**2, axis=-1) - 0.5 * (error.log_det + q * math.log(2.0 * math.pi))
     return float(value) if np.ndim(value) == 0 else value
 
 
 def track_statistics_expected_log_likelihood(error: TrackStatisticsError) -> tuple[float, float]:
     """Mean and sd (nats) of log L at the truth: −½ (χ²_q + ln |2π κ C|)."""
     q = error.covariance.shape[0]
-    log_det = 2.0 * float(np.sum(np.log(np.diag(error.cholesky))))
-    return -0.5 * (q + log_det + q * math.log(2.0 * math.pi)), math.sqrt(q / 2.0)
+    return -0.5 * (q + error.log_det + q * math.log(2.0 * math.pi)), math.sqrt(q / 2.0)
