@@ -62,24 +62,34 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import json  # noqa: E402
+import logging  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
+import tomli_w  # noqa: E402
 from fast_path import sbc_draw  # noqa: E402
 from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 
-from susp_bo.calibration.study import run_study, study_evaluator  # noqa: E402
-from susp_bo.calibration.study_preparation import prepare_study, store_fingerprint  # noqa: E402
+from susp_bo.calibration.study import run_study, study_evaluator, with_pilot  # noqa: E402
+from susp_bo.calibration.study_preparation import (  # noqa: E402
+    STORE_NAME,
+    prepare_study,
+    store_fingerprint,
+)
+from susp_bo.calibration.study_track_statistics import TrackStatisticsPlan  # noqa: E402
 from susp_bo.commands.demo import DEMO_RIG, demo_config  # noqa: E402
 from susp_bo.data.measured import save_run  # noqa: E402
 from susp_bo.data.synthetic import synthesize_runs  # noqa: E402
 from susp_bo.execution import make_executor  # noqa: E402
+from susp_bo.rig.catalog import rig_path  # noqa: E402
 from susp_bo.rig.spec import load_rig_spec  # noqa: E402
 from susp_bo.store import EvaluationStore  # noqa: E402
+from susp_bo.study_config import OutputErrorConfig  # noqa: E402
 
 NU = 3
 NOISE_M_S2 = 0.005  # the demo's sensor noise
@@ -92,19 +102,53 @@ def truth_of(seed: int, experiment: int, bounds: np.ndarray) -> np.ndarray:
 
 
 def truth_log_likelihood(config, truth: np.ndarray) -> float:
-    """log L at the truth on the study's tracks, through a throw-away store."""
+    """log L at the truth on the study's tracks, through a throw-away store (the summary
+    likelihood's pilot replayed from the study's own store first: no new simulation)."""
     study = prepare_study(config, resume=True)
+    fingerprint = store_fingerprint(study)
+    if isinstance(study.error, TrackStatisticsPlan):
+        with (
+            EvaluationStore(config.out / STORE_NAME, fingerprint) as store,
+            make_executor(workers=0) as executor,
+        ):
+            evaluate = study_evaluator(study, store, executor, progress=False)
+            study = with_pilot(study, evaluate, logging.getLogger("coverage_pybullet"), False)
+            assert evaluate.simulations_run == 0, "the pilot was not replayed from the store"
     with tempfile.TemporaryDirectory() as scratch:
-        store = EvaluationStore(Path(scratch) / "truth.sqlite", store_fingerprint(study))
+        store = EvaluationStore(Path(scratch) / "truth.sqlite", fingerprint)
         with store, make_executor(workers=0) as executor:
             evaluate = study_evaluator(study, store, executor, progress=False)
             return float(np.asarray(evaluate(truth[None, :]))[0])
 
 
-def run_experiment(out: Path, seed: int, experiment: int, workers: int) -> dict[str, Any]:
-    """Synthesise, calibrate and score one experiment; returns its record."""
+def fast_rig(out: Path) -> Path:
+    """The demo's rig made cheap (the test suite's ``fast_rig``: 8 s records after 1 s
+    warm-up, 4 s Welch segments, 32 bands from 0.5 Hz, a 5 ms step), written in ``out``."""
+    document = tomllib.loads(rig_path(DEMO_RIG).read_text())
+    document["rig"]["name"] = "hst_trailer_fast"
+    document["simulation"].update(duration_s=8.0, warm_up_s=1.0, time_step_s=0.005)
+    document["spectrum"].update(segment_s=4.0, f_min_hz=0.5, n_frequencies=32)
+    path = out / "hst_trailer_fast.toml"
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text(tomli_w.dumps(document))
+    return path
+
+
+def run_experiment(
+    out: Path,
+    seed: int,
+    experiment: int,
+    workers: int,
+    error: str = "paired",
+    rig: str | Path = DEMO_RIG,
+) -> dict[str, Any]:
+    """Synthesise, calibrate and score one experiment; returns its record.
+
+    ``error`` ``track_statistics``: the study simulates other realizations of the track
+    process, not the runs' own tracks (the summary likelihood, its pilot first).
+    """
     started = time.perf_counter()
-    spec = load_rig_spec(DEMO_RIG)
+    spec = load_rig_spec(rig)
     names, bounds = spec.calibration_names, spec.calibration_bounds
     truth = truth_of(seed, experiment, bounds)
     folder = out / f"experiment_{experiment:03d}"
@@ -119,7 +163,10 @@ def run_experiment(out: Path, seed: int, experiment: int, workers: int) -> dict[
             save_run(run, data / f"run_{index:03d}.h5")
     config = demo_config(folder, smoke=False, seed=seed)
     config = dataclasses.replace(
-        config, executor=dataclasses.replace(config.executor, workers=workers)
+        config,
+        rig=str(rig),
+        executor=dataclasses.replace(config.executor, workers=workers),
+        output_error=OutputErrorConfig(model=error),
     )
     payload, result = run_study(config, resume=(folder / "evaluations.sqlite").exists())
     draws = result.draws.reshape(-1, len(names))
@@ -138,11 +185,14 @@ def run_experiment(out: Path, seed: int, experiment: int, workers: int) -> dict[
         "reasons": [r["code"] for r in reliability.get("reasons", [])],
         "n_evaluations": int(payload["n_evaluations"]),
         "n_simulations": int(payload["n_simulations"]),
+        "output_error": {k: v for k, v in payload["output_error"].items() if k != "channels"},
         "seconds": time.perf_counter() - started,
     }
 
 
-def summarise(out: Path, names: tuple[str, ...]) -> dict[str, Any] | None:
+def summarise(
+    out: Path, names: tuple[str, ...], source: str = "PyBullet data, the demo's study"
+) -> dict[str, Any] | None:
     """coverage.json and ranks.png from every finished record in ``out``."""
     records = [json.loads(p.read_text()) for p in sorted((out / "experiments").glob("*.json"))]
     if not records:
@@ -157,7 +207,7 @@ def summarise(out: Path, names: tuple[str, ...]) -> dict[str, Any] | None:
         "trusted_intervals": len(trusted) * len(names),
     }
     (out / "coverage.json").write_text(json.dumps(summary, indent=2))
-    rank_figure(records, names, out / "ranks.png", source="PyBullet data, the demo's study")
+    rank_figure(records, names, out / "ranks.png", source=source)
     return summary
 
 
@@ -168,19 +218,36 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--first", type=int, default=0, help="index of the first experiment")
     parser.add_argument("--seed", type=int, default=0, help="master seed of truths and data")
     parser.add_argument("--workers", type=int, default=0, help="simulator processes (0: here)")
+    parser.add_argument(
+        "--error",
+        choices=("paired", "track_statistics"),
+        default="paired",
+        help="the study's [output_error] model: paired (the demo's, the runs' own tracks) or "
+        "track_statistics (other realizations of the track process, the summary likelihood)",
+    )
+    parser.add_argument(
+        "--fast-rig",
+        action="store_true",
+        help="the test suite's cheap variant of the demo's rig (8 s records, 5 ms step, 32 "
+        "bands), about 15x cheaper a run",
+    )
     args = parser.parse_args(argv)
     if args.experiments < 1 or args.first < 0 or args.workers < 0:
         print("coverage_pybullet: --experiments must be >= 1, --first and --workers >= 0",
               file=sys.stderr)  # fmt: skip
         return 2
-    names = load_rig_spec(DEMO_RIG).calibration_names
+    rig = fast_rig(args.out) if args.fast_rig else DEMO_RIG
+    source = f"PyBullet data{' (fast rig)' if args.fast_rig else ''}, the demo's study" + (
+        ", tracks known only by their statistics" if args.error == "track_statistics" else ""
+    )
+    names = load_rig_spec(rig).calibration_names
     (args.out / "experiments").mkdir(parents=True, exist_ok=True)
     for experiment in range(args.first, args.first + args.experiments):
         record_file = args.out / "experiments" / f"{experiment:03d}.json"
         if record_file.exists():
             continue
         print(f"coverage_pybullet: experiment {experiment}", file=sys.stderr, flush=True)
-        record = run_experiment(args.out, args.seed, experiment, args.workers)
+        record = run_experiment(args.out, args.seed, experiment, args.workers, args.error, rig)
         record_file.write_text(json.dumps(record, indent=1))
         print(
             f"coverage_pybullet: experiment {experiment}: {record['verdict']} "
@@ -190,7 +257,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
             flush=True,
         )
-        summary = summarise(args.out, names)
+        summary = summarise(args.out, names, source)
         if summary is not None:
             pooled = summary["pooled"]
             print(

@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
 
+from susp_bo.calibration.track_statistics import MINIMUM_PILOT_RUNS
+
 
 def _integer(name: str, value: object, minimum: int) -> None:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
@@ -192,6 +194,10 @@ is read, before any simulation (outside probe, session 29: 10¹² chains failed 
 MemoryError traceback after every simulation had run)."""
 
 
+OUTPUT_ERROR_MODELS = ("unpaired", "paired", "track_statistics")
+"""Values of ``[output_error] model``."""
+
+
 @dataclass(frozen=True)
 class OutputErrorConfig:
     """Output prediction error B (eq. 4).
@@ -204,6 +210,12 @@ class OutputErrorConfig:
             Paired is the right model when the tracks are measured, but its posterior is
             10⁻⁴–10⁻³ of C_w wide and the surrogate search does not resolve it at the
             usual budgets yet (README, "Which output-error model applies"), so it is opt-in.
+            ``"track_statistics"``: the runs' tracks were not measured (their geometry in
+            the run files is not used), only the track process is known (the rig's
+            ``simulation.track_quality`` PSD): the model simulates ``simulated_tracks``
+            synthetic realizations and compares q summaries of the mean spectra, with
+            weights and covariance from a pilot of ``pilot_runs`` runs on fresh
+            realizations, twice (:mod:`susp_bo.calibration.study_track_statistics`).
         sigma: ``"estimate"`` (from the data), one σ for every channel, or a
             mapping channel name → σ (log-amplitude units, > 0). Paired: the
             model-error sd τ_c, "estimate" = profiled at every w; unpaired: σ_B,
@@ -215,6 +227,10 @@ class OutputErrorConfig:
             to the simulated spectra as a noise floor before the comparison; None
             takes ``noise_m_s2`` from the runs' metadata (synthetic runs record it),
             else 0.
+        pilot_runs: ``track_statistics`` only: M pilot runs per stage (None = 100; at
+            least max(10 q, 50), checked when q is known); outside the budget.
+        simulated_tracks: ``track_statistics`` only: μ synthetic track realizations the
+            model simulates at every w (None = ν, the measured runs' count).
     """
 
     section: ClassVar[str] = "output_error"
@@ -222,13 +238,36 @@ class OutputErrorConfig:
     sigma: str | float | Mapping[str, float] = "estimate"
     correlation_length_hz: float | None = None
     sensor_noise_m_s2: float | None = None
+    pilot_runs: int | None = None
+    simulated_tracks: int | None = None
 
     def __post_init__(self) -> None:
-        if self.model not in ("paired", "unpaired"):
+        if self.model not in OUTPUT_ERROR_MODELS:
             raise ValueError(
                 f"output_error.model: {self.model!r} is not allowed; expected 'paired' (each "
-                "run with its own measured track) or 'unpaired' (track statistics only)"
+                "run with its own measured track), 'unpaired' (eq. 4's mixture over the runs' "
+                "tracks) or 'track_statistics' (tracks not measured, only their statistics "
+                "known)"
             )
+        if self.model == "track_statistics":
+            for name, default in (("sigma", "estimate"), ("correlation_length_hz", None)):
+                if getattr(self, name) != default:
+                    raise ValueError(
+                        f"output_error.{name}: {getattr(self, name)!r} is not allowed with "
+                        "model = 'track_statistics' (its covariance comes from the pilot "
+                        "runs); remove it"
+                    )
+            if self.pilot_runs is not None:
+                _integer("output_error.pilot_runs", self.pilot_runs, MINIMUM_PILOT_RUNS)
+            if self.simulated_tracks is not None:
+                _integer("output_error.simulated_tracks", self.simulated_tracks, 1)
+        else:
+            for name in ("pilot_runs", "simulated_tracks"):
+                if getattr(self, name) is not None:
+                    raise ValueError(
+                        f"output_error.{name}: {getattr(self, name)!r} is not allowed with "
+                        f"model = {self.model!r}; it belongs to model = 'track_statistics'"
+                    )
         if self.model == "paired" and self.correlation_length_hz is not None:
             raise ValueError(
                 f"output_error.correlation_length_hz: {self.correlation_length_hz!r} is not "

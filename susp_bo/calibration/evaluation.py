@@ -14,8 +14,9 @@ calibration loop treats as a failed point — the study goes on.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
 
@@ -23,6 +24,10 @@ import numpy as np
 
 from susp_bo.calibration.likelihood import OutputError, log_likelihood
 from susp_bo.calibration.paired_error import PairedOutputError, paired_log_likelihood
+from susp_bo.calibration.track_statistics import (
+    TrackStatisticsError,
+    track_statistics_log_likelihood,
+)
 from susp_bo.execution import TaskOutcome, run_tasks
 from susp_bo.rig.design import TrackDesign
 from susp_bo.rig.simulator import Rig
@@ -94,6 +99,35 @@ def simulate_spectra(
     return np.asarray(spectra.log_amplitude, dtype=np.float64)
 
 
+def simulate_noisy_spectra(
+    spec: RigSpec,
+    parameters: Mapping[str, float],
+    geometry: TrackGeometry,
+    speed: SpeedProfile,
+    design: TrackDesign | None,
+    noise_m_s2: float,
+    noise_seed: int | Sequence[int],
+) -> np.ndarray:
+    """One run as it would be measured: the rig's accelerations plus white sensor noise
+    (``noise_m_s2`` m/s² rms, drawn by ``numpy.random.default_rng(noise_seed)``), then its
+    log-amplitude spectra (C x F) — a pilot run of the summary likelihood
+    (:mod:`.study_track_statistics`).
+
+    The noise is drawn, not a floor (:func:`simulate_spectra`'s spectra take the floor in
+    :meth:`LikelihoodEvaluator.spectra`): the pilot measures how one measured run's
+    spectrum scatters, the sensor's share included.
+
+    Raises:
+        SimulationFailed: the simulation diverged (recorded as a failed evaluation).
+    """
+    response = _WORKER_RIGS.rig(spec).simulate(geometry, speed, dict(parameters), design=design)
+    accelerations = response.accelerations_m_s2
+    if noise_m_s2 > 0.0:
+        noise = np.random.default_rng(noise_seed).normal(0.0, noise_m_s2, accelerations.shape)
+        response = dataclasses.replace(response, accelerations_m_s2=accelerations + noise)
+    return np.asarray(response.spectra().log_amplitude, dtype=np.float64)
+
+
 class LikelihoodEvaluator:
     """``evaluate(W) -> log L`` for the calibration loop, backed by the store and an executor.
 
@@ -102,8 +136,9 @@ class LikelihoodEvaluator:
         names: calibration parameter names, in the order of the columns of W.
         tracks: the μ measured track stretches x_j.
         measured: (ν x C x F) measured log-amplitude spectra.
-        error: the output error model B: paired (run i against track i only) or the
-            unpaired mixture of eq. 4.
+        error: the output error model B: paired (run i against track i only), the
+            unpaired mixture of eq. 4, or the summary likelihood (tracks known only by
+            their statistics, :mod:`.track_statistics`; a study sets it after its pilot).
         store: where every evaluation is recorded and looked up.
         executor: where simulations run.
         frequencies_hz: (F,) grid of the spectra.
@@ -119,7 +154,7 @@ class LikelihoodEvaluator:
         names: Sequence[str],
         tracks: Sequence[TrackRun],
         measured: np.ndarray,
-        error: OutputError | PairedOutputError,
+        error: OutputError | PairedOutputError | TrackStatisticsError,
         store: EvaluationStore,
         executor: Executor,
         frequencies_hz: np.ndarray,
@@ -152,55 +187,79 @@ class LikelihoodEvaluator:
             ``b`` lists of ``μ`` arrays (C x F), None where the evaluation failed.
         """
         W = np.atleast_2d(np.asarray(W, dtype=np.float64))
-        found: dict[tuple[int, int], np.ndarray | None] = {}
-        missing: list[tuple[int, int]] = []
-        for row, w in enumerate(W):
-            for column, track in enumerate(self.tracks):
-                recorded = self.store.lookup(w, track.track_id)
-                if recorded is None:
-                    missing.append((row, column))
-                else:
-                    found[row, column] = recorded.spectra if recorded.ok else None
-        self.simulations_reused += len(found)
-        if missing:
-            tasks = [
+        items = [
+            (
+                w,
+                track.track_id,
                 (
                     self.spec,
-                    dict(zip(self.names, W[row].tolist())),
-                    self.tracks[column].geometry,
-                    self.tracks[column].speed,
-                    self.tracks[column].design,
-                )
-                for row, column in missing
-            ]
+                    dict(zip(self.names, w.tolist())),
+                    track.geometry,
+                    track.speed,
+                    track.design,
+                ),
+            )
+            for w in W
+            for track in self.tracks
+        ]
+        found = self.stored_runs(items, simulate_spectra)
+        mu = len(self.tracks)
+        return [found[row * mu : (row + 1) * mu] for row in range(len(W))]
+
+    def stored_runs(
+        self,
+        items: Sequence[tuple[np.ndarray, str, tuple]],
+        simulate: Callable[..., np.ndarray],
+        desc: str = "simulations",
+    ) -> list[np.ndarray | None]:
+        """Simulator results keyed by (parameters, track id): the store's, else run.
+
+        Args:
+            items: ``(w, track_id, arguments)``: w (q,) physical units and the track id
+                that key the store, ``simulate(*arguments)`` what runs when it misses.
+            simulate: a picklable top-level function returning (C x F) spectra.
+            desc: the progress bar's label.
+
+        Returns:
+            One (C x F) array per item, None where the evaluation failed.
+        """
+        found: dict[int, np.ndarray | None] = {}
+        missing: list[int] = []
+        for index, (w, track_id, _) in enumerate(items):
+            recorded = self.store.lookup(w, track_id)
+            if recorded is None:
+                missing.append(index)
+            else:
+                found[index] = recorded.spectra if recorded.ok else None
+        self.simulations_reused += len(found)
+        if missing:
 
             def record(outcome: TaskOutcome) -> None:
-                row, column = missing[outcome.index]
-                track_id = self.tracks[column].track_id
+                w, track_id, _ = items[missing[outcome.index]]
                 if outcome.ok:
-                    self.store.record_ok(W[row], track_id, outcome.value, outcome.seconds)
+                    self.store.record_ok(w, track_id, outcome.value, outcome.seconds)
                 else:
                     self.store.record_failure(
-                        W[row],
+                        w,
                         track_id,
                         outcome.reason or "unknown failure",
                         outcome.seconds,
                         kind=outcome.failure_kind or "error",
                     )
-                    self.failures.append(f"{dict(zip(self.names, W[row]))}: {outcome.reason}")
+                    self.failures.append(f"{dict(zip(self.names, w))}: {outcome.reason}")
 
             outcomes = run_tasks(
                 self.executor,
-                simulate_spectra,
-                tasks,
+                simulate,
+                [items[index][2] for index in missing],
                 on_result=record,
-                desc="simulations",
+                desc=desc,
                 progress=self.progress,
             )
             self.simulations_run += len(missing)
-            for (row, column), outcome in zip(missing, outcomes):
-                found[row, column] = np.asarray(outcome.value) if outcome.ok else None
-        return [[found[row, column] for column in range(len(self.tracks))] for row in range(len(W))]
+            for index, outcome in zip(missing, outcomes):
+                found[index] = np.asarray(outcome.value) if outcome.ok else None
+        return [found[index] for index in range(len(items))]
 
     def spectra(self, W: np.ndarray) -> np.ndarray:
         """(b x μ x C x F) simulated spectra of the rows of W, noise floor included; a row
@@ -227,6 +286,8 @@ class LikelihoodEvaluator:
         H = np.asarray(H, dtype=np.float64)
         if isinstance(self.error, PairedOutputError):
             value = paired_log_likelihood(self.measured, H, self.error, exact=exact)
+        elif isinstance(self.error, TrackStatisticsError):
+            value = track_statistics_log_likelihood(self.measured, H, self.error)
         else:
             value = log_likelihood(self.measured, H, self.error, self.frequencies_hz)
         return np.atleast_1d(np.asarray(value, dtype=np.float64))

@@ -64,7 +64,13 @@ from susp_bo.calibration.study_preparation import (
     prepare_study,
     store_fingerprint,
 )
+from susp_bo.calibration.study_track_statistics import (
+    TrackStatisticsPlan,
+    pilot_payload,
+    run_pilot,
+)
 from susp_bo.calibration.surrogate import SurrogateSettings
+from susp_bo.calibration.track_statistics import TrackStatisticsError
 from susp_bo.execution import make_executor
 from susp_bo.json_files import json_ready, write_json
 from susp_bo.numerics import numerics_in_effect, one_blas_thread
@@ -143,6 +149,46 @@ def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float
     return float(mean), float(sd)
 
 
+def with_pilot(
+    study: PreparedStudy, evaluator: LikelihoodEvaluator, log: logging.Logger, progress: bool
+) -> PreparedStudy:
+    """``study`` with the summary likelihood's error from its pilot (run, or replayed from
+    the store), set on ``evaluator`` too (:mod:`.study_track_statistics`).
+
+    Raises:
+        StudyError: the pilot failed (:func:`.study_track_statistics.run_pilot`).
+    """
+    plan = study.error
+    assert isinstance(plan, TrackStatisticsPlan)
+    line = (
+        f"summary likelihood (tracks known only by their statistics): pilot of 2 x "
+        f"{plan.pilot_runs} runs on fresh track realizations and a fit of the "
+        f"{len(study.names)} summaries on {plan.n_simulated} model tracks, outside the budget"
+    )
+    log.info(line)
+    if progress:
+        print(line, file=sys.stderr)
+    error, record = run_pilot(
+        plan,
+        study.runs,
+        study.measured,
+        study.bounds,
+        evaluator,
+        study.spec,
+        study.noise_m_s2,
+    )
+    evaluator.error = error
+    line = (
+        f"pilot done: {record.simulations} simulator runs, second stage at the first fit "
+        f"({'converged' if record.converged else 'not converged after its iterations'}), "
+        f"Ledoit-Wolf shrinkage {record.shrinkage:.2f}"
+    )
+    log.info(line)
+    if progress:
+        print(line, file=sys.stderr)
+    return dataclasses.replace(study, error=error, pilot=record)
+
+
 def _logger(out: Path) -> logging.Logger:
     logger = logging.getLogger(f"susp_bo.study.{out.resolve()}")
     logger.setLevel(logging.INFO)
@@ -157,10 +203,30 @@ def _logger(out: Path) -> logging.Logger:
 def output_error_payload(study: PreparedStudy) -> dict[str, Any]:
     """``result.json`` ``output_error``: which model B is, and its values.
 
-    ``model`` is ``paired`` or ``unpaired``; ``sigma`` is σ_B per channel (unpaired) or
-    the fixed model-error sd τ_c (paired; None = profiled at every w).
+    ``model`` is ``paired``, ``unpaired`` or ``track_statistics``; ``sigma`` is σ_B per
+    channel (unpaired) or the fixed model-error sd τ_c (paired; None = profiled at every w);
+    the summary likelihood records its pilot instead
+    (:func:`.study_track_statistics.pilot_payload`).
     """
     error = study.error
+    if isinstance(error, TrackStatisticsError):
+        pilot = (
+            {}
+            if study.pilot is None
+            else pilot_payload(error, study.pilot, study.bounds, study.names)
+        )
+        return {
+            "model": "track_statistics",
+            "channels": list(study.spec.channels),
+            "sigma": None,
+            "correlation_length_hz": None,
+            "sensor_noise_m_s2": study.noise_m_s2,
+            "simulated_tracks": int(error.n_simulated),
+            "track_quality": study.spec.simulation.track_quality,
+            **pilot,
+        }
+    if isinstance(error, TrackStatisticsPlan):
+        raise ValueError("output_error_payload: the summary likelihood's pilot has not run")
     if isinstance(error, PairedOutputError):
         return {
             "model": "paired",
@@ -295,6 +361,8 @@ def run_study(
                     print(line, file=sys.stderr)
             started = time.perf_counter()
             evaluator = study_evaluator(study, store, executor, progress=progress)
+            if isinstance(study.error, TrackStatisticsPlan):
+                study = with_pilot(study, evaluator, log, progress)
 
             def report(item: IterationReport) -> None:
                 line = (

@@ -32,6 +32,13 @@ from susp_bo.calibration.study_inputs import (
     run_names,
     sensor_noise,
 )
+from susp_bo.calibration.study_track_statistics import (
+    TrackStatisticsPlan,
+    model_tracks,
+    plan_for,
+)
+from susp_bo.calibration.track_statistics import TrackStatisticsError
+from susp_bo.calibration.track_statistics_pilot import PilotRecord
 from susp_bo.data.measured import MeasuredRun
 from susp_bo.data.run_files import load_runs
 from susp_bo.data.run_validation import validate_run
@@ -65,10 +72,14 @@ class PreparedStudy:
         bounds: (2 x q) admissible set C_w.
         runs: the ν measured runs (channels in the rig's order).
         measured: (ν x C x F) measured log-amplitude spectra.
-        tracks: the μ track stretches.
-        error: the output error model B (paired or unpaired).
+        tracks: the μ track stretches: the runs' own, or with ``track_statistics``
+            synthetic realizations of the track process.
+        error: the output error model B (paired, unpaired, or the summary likelihood:
+            its plan until ``run_study`` has run the pilot, then its error).
         noise_m_s2: accelerometer noise (m/s² rms) added to simulated spectra as a floor.
         reference: (q,) true parameters when the data are synthetic, else None.
+        pilot: what the summary likelihood's pilot did (None for the other models, or
+            before it ran).
     """
 
     config: StudyConfig
@@ -78,9 +89,10 @@ class PreparedStudy:
     runs: tuple[MeasuredRun, ...]
     measured: np.ndarray
     tracks: tuple[TrackRun, ...]
-    error: OutputError | PairedOutputError
+    error: OutputError | PairedOutputError | TrackStatisticsPlan | TrackStatisticsError
     noise_m_s2: float
     reference: np.ndarray | None
+    pilot: PilotRecord | None = None
 
     @property
     def units(self) -> tuple[str, ...]:
@@ -264,14 +276,29 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         measured = measured_log_spectra(spec, runs)
     except ValueError as error:
         raise StudyError(f"data: {error}") from error
-    tracks = tuple(
-        TrackRun(f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed, run.design)
-        for index, run in enumerate(runs)
-    )
     all_names = spec.calibration_names
     columns = [all_names.index(name) for name in names]
     bounds = spec.calibration_bounds[:, columns]
     noise = sensor_noise(config, runs)
+    if config.output_error.model == "track_statistics":
+        plan = plan_for(
+            config.output_error.pilot_runs,
+            config.output_error.simulated_tracks,
+            len(names),
+            len(runs),
+            config.seeds.calibration,
+            spec.simulation.track_quality,
+        )
+        tracks = model_tracks(runs, plan)
+        error: OutputError | PairedOutputError | TrackStatisticsPlan = plan
+    else:
+        tracks = tuple(
+            TrackRun(
+                f"run{index:03d}-{run.content_digest()[:16]}", run.geometry, run.speed, run.design
+            )
+            for index, run in enumerate(runs)
+        )
+        error = _output_error(config, measured, spec.channels, runs, spec, noise)
     return PreparedStudy(
         config=config,
         spec=spec,
@@ -280,7 +307,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
         runs=runs,
         measured=measured,
         tracks=tracks,
-        error=_output_error(config, measured, spec.channels, runs, spec, noise),
+        error=error,
         noise_m_s2=noise,
         reference=reference_parameters(runs, tuple(names)),
     )

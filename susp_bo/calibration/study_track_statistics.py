@@ -1,0 +1,235 @@
+"""A study on tracks known only by their statistics (``[output_error] model = "track_statistics"``).
+
+The measured runs went over track stretches that were not measured (their run files'
+geometry is not used): only the track process is known, the rig's
+``simulation.track_quality`` PSD (:meth:`~susp_bo.rig.track.TrackGeometry.synthetic`). The
+study then
+
+1. simulates every w on μ synthetic realizations of that process
+   (:func:`model_tracks`: fixed, seeded by ``seeds.calibration``; track j takes run
+   j mod ν's speed profile, line design and length);
+2. before the calibration, runs the summary likelihood's two-stage pilot
+   (:mod:`.track_statistics_pilot`): M runs at the middle of C_w on fresh realizations
+   with drawn sensor noise (:func:`~susp_bo.calibration.evaluation.simulate_noisy_spectra`,
+   pilot run m takes run m mod ν's speed, design and length), a Gauss–Newton fit of the q
+   summaries on the model tracks, then M runs again at that fit (:func:`run_pilot`);
+3. calibrates with the resulting :class:`~.track_statistics.TrackStatisticsError`.
+
+Every pilot run and every model-track run goes through the study's store and executor
+(keyed by the pilot point and the run's track id, which names its stage, index and seed),
+so a resumed study replays the pilot from the store bit for bit and reaches the same error.
+The pilot's simulations are outside the budget; ``result.json["output_error"]`` records
+them (:func:`pilot_payload`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from susp_bo.calibration.evaluation import (
+    LikelihoodEvaluator,
+    TrackRun,
+    simulate_noisy_spectra,
+)
+from susp_bo.calibration.study_inputs import StudyError
+from susp_bo.calibration.track_statistics import TrackStatisticsError, minimum_pilot_runs
+from susp_bo.calibration.track_statistics_pilot import PILOT_RUNS, PilotRecord, two_stage_error
+from susp_bo.data.measured import MeasuredRun
+from susp_bo.rig.spec import RigSpec
+from susp_bo.rig.track import TrackGeometry
+
+MODEL_TRACKS_TAG = 7001
+"""Mixed into the seed of the model's track realizations."""
+PILOT_TRACKS_TAG = 7002
+"""Mixed into the seeds of the pilot's track realizations and sensor noise."""
+
+
+@dataclass(frozen=True)
+class TrackStatisticsPlan:
+    """The summary likelihood before its pilot has run: what the pilot will do.
+
+    A prepared study holds it as its output error (the store's fingerprint records it);
+    :func:`run_pilot` turns it into the :class:`~.track_statistics.TrackStatisticsError`.
+
+    Attributes:
+        pilot_runs: M runs per stage.
+        n_measured: ν.
+        n_simulated: μ.
+        seed: the seed of the model's and the pilot's track realizations.
+        track_quality: the PSD the realizations are drawn from.
+    """
+
+    pilot_runs: int
+    n_measured: int
+    n_simulated: int
+    seed: int
+    track_quality: str
+    model: str = field(default="track_statistics", init=False)
+
+
+def plan_for(
+    pilot_runs: int | None,
+    simulated_tracks: int | None,
+    q: int,
+    n_measured: int,
+    seed: int,
+    track_quality: str,
+) -> TrackStatisticsPlan:
+    """The plan a study's ``[output_error]`` asks for, checked against q.
+
+    Raises:
+        StudyError: ``pilot_runs`` below :func:`.track_statistics.minimum_pilot_runs` (q).
+    """
+    runs = PILOT_RUNS if pilot_runs is None else pilot_runs
+    need = minimum_pilot_runs(q)
+    if runs < need:
+        raise StudyError(
+            f"output_error.pilot_runs: {runs} is not allowed for q = {q} calibrated "
+            f"parameters; expected at least {need} (max(10 q, 50): the pilot's covariance of "
+            "the q summaries needs them)"
+        )
+    mu = n_measured if simulated_tracks is None else simulated_tracks
+    return TrackStatisticsPlan(runs, n_measured, mu, seed, track_quality)
+
+
+def _synthetic_run(
+    template: MeasuredRun, track_id: str, quality: str, seed: Sequence[int]
+) -> TrackRun:
+    """A realization of the track process under ``template``'s speed, design and length."""
+    track_seed = int(np.random.SeedSequence(list(seed)).generate_state(1)[0])
+    geometry = TrackGeometry.synthetic(
+        quality=quality,  # type: ignore[arg-type]
+        length_m=template.geometry.length_m,
+        seed=track_seed,
+    )
+    return TrackRun(track_id, geometry, template.speed, template.design)
+
+
+def model_tracks(runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan) -> tuple[TrackRun, ...]:
+    """The μ synthetic track realizations the model simulates at every w (module docstring)."""
+    return tuple(
+        _synthetic_run(
+            runs[j % len(runs)],
+            f"model{j:03d}-seed{plan.seed}",
+            plan.track_quality,
+            (plan.seed, MODEL_TRACKS_TAG, j),
+        )
+        for j in range(plan.n_simulated)
+    )
+
+
+def pilot_tracks(
+    runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan, stage: int
+) -> tuple[TrackRun, ...]:
+    """The M fresh realizations of one pilot stage (0 or 1)."""
+    return tuple(
+        _synthetic_run(
+            runs[m % len(runs)],
+            f"pilot{stage}-{m:03d}-seed{plan.seed}",
+            plan.track_quality,
+            (plan.seed, PILOT_TRACKS_TAG, stage, m),
+        )
+        for m in range(plan.pilot_runs)
+    )
+
+
+def _noise_seed(plan: TrackStatisticsPlan, stage: int, m: int) -> int:
+    return int(
+        np.random.SeedSequence([plan.seed, PILOT_TRACKS_TAG, stage, m, 1]).generate_state(1)[0]
+    )
+
+
+def run_pilot(
+    plan: TrackStatisticsPlan,
+    runs: Sequence[MeasuredRun],
+    measured: np.ndarray,
+    bounds: np.ndarray,
+    evaluator: LikelihoodEvaluator,
+    spec: RigSpec,
+    noise_m_s2: float,
+) -> tuple[TrackStatisticsError, PilotRecord]:
+    """The two-stage pilot of a study, through its store and executor (module docstring).
+
+    Args:
+        plan: what the study's ``[output_error]`` asked for.
+        runs: the ν measured runs (speed, design and length of the realizations).
+        measured: (ν x C x F) their spectra.
+        bounds: (2 x q) C_w.
+        evaluator: the study's evaluator on the μ model tracks (its store and executor).
+        spec: the rig.
+        noise_m_s2: sensor noise (m/s² rms) drawn into every pilot run.
+
+    Raises:
+        StudyError: a simulation of the pilot failed, or the pilot's spectra cannot give
+            the summaries (a parameter without effect at the pilot point), naming it; the
+            finished simulations stay in the store.
+    """
+    names = evaluator.names
+
+    def spectra(W: np.ndarray) -> np.ndarray:
+        H = evaluator.spectra(W)
+        bad = np.flatnonzero(~np.all(np.isfinite(H.reshape(len(H), -1)), axis=1))
+        if bad.size:
+            point = dict(zip(names, np.atleast_2d(W)[bad[0]].tolist()))
+            raise StudyError(
+                f"output_error.model = 'track_statistics': the pilot's simulation at {point} "
+                f"failed ({'; '.join(evaluator.failures[-1:]) or 'see the log'}); the "
+                "summary likelihood needs every run of its pilot: narrow C_w in the rig file "
+                "or use another output-error model"
+            )
+        return H
+
+    def pilot_runs(w: np.ndarray, stage: int) -> np.ndarray:
+        parameters = dict(zip(names, w.tolist()))
+        items = [
+            (
+                w,
+                track.track_id,
+                (
+                    spec,
+                    parameters,
+                    track.geometry,
+                    track.speed,
+                    track.design,
+                    noise_m_s2,
+                    _noise_seed(plan, stage, m),
+                ),
+            )
+            for m, track in enumerate(pilot_tracks(runs, plan, stage))
+        ]
+        found = evaluator.stored_runs(
+            items, simulate_noisy_spectra, desc=f"pilot stage {stage + 1}"
+        )
+        if any(f is None for f in found):
+            failed = sum(f is None for f in found)
+            raise StudyError(
+                f"output_error.model = 'track_statistics': {failed} of the {len(found)} "
+                f"pilot runs of stage {stage + 1} at {parameters} failed "
+                f"({'; '.join(evaluator.failures[-1:]) or 'see the log'}); the summary "
+                "likelihood needs every run of its pilot"
+            )
+        return np.stack([np.asarray(f) for f in found])
+
+    try:
+        return two_stage_error(spectra, pilot_runs, measured, bounds, plan.n_simulated)
+    except ValueError as error:
+        raise StudyError(f"output_error.model = 'track_statistics': the pilot: {error}") from None
+
+
+def pilot_payload(
+    error: TrackStatisticsError, record: PilotRecord, bounds: np.ndarray, names: Sequence[str]
+) -> dict[str, object]:
+    """``result.json["output_error"]``'s pilot fields (physical units)."""
+    first = np.asarray(record.first_fit)
+    point = bounds[0] + first * (bounds[1] - bounds[0])
+    return {
+        "pilot_runs": int(error.pilot_runs),
+        "pilot_simulations": int(record.simulations),
+        "pilot_point": dict(zip(names, point.tolist())),
+        "pilot_fit_converged": bool(record.converged),
+        "shrinkage": float(error.shrinkage),
+        "summary_covariance": np.asarray(error.covariance).tolist(),
+    }

@@ -1,0 +1,147 @@
+"""A study on tracks known only by their statistics (``model = "track_statistics"``), end to
+end on PyBullet: the pilot runs through the store, a study killed inside its pilot resumes to
+the uninterrupted result, and what the pilot gives is what ``result.json`` says."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow
+
+PILOT = """
+[output_error]
+model = "track_statistics"
+pilot_runs = 50
+"""
+
+
+def _keys(store: Path) -> list[tuple[str, str]]:
+    """(track id, status) of every stored evaluation; [] while the store is being made."""
+    if not store.exists():
+        return []
+    try:
+        db = sqlite3.connect(f"file:{store}?mode=ro", uri=True)
+        try:
+            return db.execute("SELECT track_id, status FROM evaluations ORDER BY id").fetchall()
+        finally:
+            db.close()
+    except sqlite3.DatabaseError:
+        return []
+
+
+def _stable(out: Path) -> dict:
+    payload = json.loads((out / "result.json").read_text())
+    payload.pop("wall_time_s")
+    return payload
+
+
+@pytest.fixture(scope="module")
+def statistics_study(fast_rig, fast_data, study_writer, calibrate_command, tmp_path_factory):
+    """The small study (q = 2, 10 evaluations) with the summary likelihood, run once."""
+    folder = tmp_path_factory.mktemp("statistics")
+    config = study_writer(folder, fast_rig, fast_data, folder / "out")
+    config.write_text(config.read_text() + PILOT)
+    done = calibrate_command(config)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return folder / "out", done.stderr
+
+
+def test_the_pilot_runs_through_the_store_and_result_json_records_it(statistics_study) -> None:
+    out, stderr = statistics_study
+    payload = json.loads((out / "result.json").read_text())
+    error = payload["output_error"]
+    assert error["model"] == "track_statistics"
+    assert (error["pilot_runs"], error["simulated_tracks"], payload["mu"]) == (50, 2, 2)
+    keys = _keys(out / "evaluations.sqlite")
+    assert all(status == "ok" for _, status in keys)
+    pilot = [k for k, _ in keys if k.startswith("pilot")]
+    assert sorted({k.split("-")[0] for k in pilot}) == ["pilot0", "pilot1"]
+    assert len(pilot) == len(set(pilot)) == 100  # 2 stages x M fresh realizations
+    model = {k for k, _ in keys if not k.startswith("pilot")}
+    assert model == {"model000-seed0", "model001-seed0"}  # never the runs' own tracks
+    # the pilot's count: its runs and its Gauss–Newton points on the model tracks; the
+    # loop's 10 evaluations on the μ = 2 tracks are the rest of the store
+    assert error["pilot_simulations"] + 2 * payload["n_evaluations"] >= len(keys)
+    assert payload["n_simulations"] == len(keys)
+    assert error["pilot_simulations"] >= 100 + 2 * 2 * 2  # + the Jacobian's 2 q points x μ
+    lower, upper = np.array(payload["bounds"]).T
+    point = np.array(list(error["pilot_point"].values()))
+    assert np.all((lower <= point) & (point <= upper))
+    # the verdict's expectation of log L at the truth is the model's, from C in result.json
+    covariance = np.array(error["summary_covariance"])
+    kappa = 1 / payload["nu"] + 1 / payload["mu"]
+    expected = -0.5 * (2 + math.log(np.linalg.det(2 * math.pi * kappa * covariance)))
+    mean, sd = payload["reliability"]["evidence"]["expected_at_truth"]
+    assert mean == pytest.approx(expected, rel=1e-9) and sd == pytest.approx(1.0)
+    assert payload["reliability"]["verdict"] == "not_trusted"
+    assert "budget_too_small" in {r["code"] for r in payload["reliability"]["reasons"]}
+    assert "pilot of 2 x 50 runs" in stderr and "pilot done:" in stderr
+
+
+def test_a_study_killed_inside_its_pilot_resumes_to_the_uninterrupted_result(
+    statistics_study, fast_rig, fast_data, study_writer, calibrate_command, tmp_path: Path
+) -> None:
+    reference, _ = statistics_study
+    out = tmp_path / "out"
+    config = study_writer(tmp_path, fast_rig, fast_data, out)
+    config.write_text(config.read_text() + PILOT)
+    store = out / "evaluations.sqlite"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "susp_bo", "calibrate", str(config)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 300
+    try:  # stage 1's 50 pilot runs come first: kill among them
+        while time.monotonic() < deadline and len(_keys(store)) < 10:
+            assert process.poll() is None, "the study ended before it could be killed"
+            time.sleep(0.05)
+        os.kill(process.pid, signal.SIGKILL)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait(timeout=30)
+    before = _keys(store)
+    assert 10 <= len(before) < 50 and all(k.startswith("pilot0-") for k, _ in before)
+    resumed = calibrate_command(config, "--resume")
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert _stable(out) == _stable(reference)
+    assert sorted(_keys(store)) == sorted(_keys(reference / "evaluations.sqlite"))
+
+
+def test_a_pilot_too_small_for_q_is_refused_before_any_simulation(
+    fast_rig, fast_data, study_writer, calibrate_command, tmp_path: Path
+) -> None:
+    config = study_writer(tmp_path, fast_rig, fast_data, tmp_path / "out")
+    text = config.read_text().replace(
+        'parameters = ["secondary_vertical_damping", "yaw_damper_damping"]',
+        'parameters = ["secondary_vertical_damping", "yaw_damper_damping", '
+        '"primary_vertical_damping", "secondary_lateral_damping", "anti_roll_bar_stiffness", '
+        '"primary_vertical_stiffness"]',
+    )
+    config.write_text(text + PILOT)
+    refused = calibrate_command(config)
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "output_error.pilot_runs: 50 is not allowed for q = 6" in refused.stderr
+    assert "at least 60" in refused.stderr
+    assert "Traceback" not in refused.stderr
+    assert not (tmp_path / "out" / "evaluations.sqlite").exists()
+    config.write_text(text + PILOT.replace("pilot_runs = 50", "pilot_runs = 20"))
+    refused = calibrate_command(config)
+    assert refused.returncode == 2
+    assert "output_error.pilot_runs: 20 is not allowed; expected an integer >= 50" in (
+        refused.stderr
+    )
