@@ -38,10 +38,13 @@ Example (also in the README; the test suite loads this one)::
     sampler = "auto"        # random walk; HMC where it did not mix ("random_walk", "hmc")
 
     [output_error]
-    model = "unpaired"      # eq. 4 mixture (default); "paired": each run vs its own track
+    model = "unpaired"      # eq. 4 mixture (default); "paired": each run vs its own track;
+                            # "track_statistics": tracks not measured, only their PSD known
     sigma = "estimate"      # or one σ for all channels, or a table {channel = σ}
     # correlation_length_hz = 0.5   # unpaired only: frequency correlation length (Hz)
     sensor_noise_m_s2 = 0.005     # accelerometer noise floor; omit = from the runs' metadata
+    # pilot_runs = 100      # track_statistics only: pilot runs per stage, outside the budget
+    # simulated_tracks = 3  # track_statistics only: μ model track realizations (omit = ν)
 
     [search]
     local = true            # Gauss–Newton on the spectra after EGO (needed for "paired")

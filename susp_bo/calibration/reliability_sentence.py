@@ -38,9 +38,9 @@ COMMAND_LINE_ADVICE = {
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
     "runs_not_reproduced": "if the runs' tracks were not measured, measure them and give "
     "each with its run (the measured-data format's track geometry), then calibrate with "
-    '[output_error] model = "paired" and [search] local = true — eq. 4\'s intervals are '
-    "not calibrated on tracks known only by their statistics (the summary likelihood of "
-    "susp_bo.calibration.track_statistics is, from the Python API, for an exact model); if "
+    '[output_error] model = "paired" and [search] local = true, or calibrate with '
+    '[output_error] model = "track_statistics" (calibrated on tracks known only by their '
+    "statistics, for an exact model) — eq. 4's intervals are not calibrated there; if "
     "they were, look for the physics the model misses (the residuals of the best point, "
     "susp-bo diagnose)",
     "failed_region": "look at the failed evaluations (the log, evaluations.sqlite): narrow "

@@ -149,6 +149,13 @@ def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float
     return float(mean), float(sd)
 
 
+def _say(log: logging.Logger, line: str, progress: bool) -> None:
+    """``line`` in the study's log, and on stderr with ``progress``."""
+    log.info(line)
+    if progress:
+        print(line, file=sys.stderr)
+
+
 def with_pilot(
     study: PreparedStudy, evaluator: LikelihoodEvaluator, log: logging.Logger, progress: bool
 ) -> PreparedStudy:
@@ -165,9 +172,7 @@ def with_pilot(
         f"{plan.pilot_runs} runs on fresh track realizations and a fit of the "
         f"{len(study.names)} summaries on {plan.n_simulated} model tracks, outside the budget"
     )
-    log.info(line)
-    if progress:
-        print(line, file=sys.stderr)
+    _say(log, line, progress)
     error, record = run_pilot(
         plan,
         study.runs,
@@ -183,9 +188,7 @@ def with_pilot(
         f"({'converged' if record.converged else 'not converged after its iterations'}), "
         f"Ledoit-Wolf shrinkage {record.shrinkage:.2f}"
     )
-    log.info(line)
-    if progress:
-        print(line, file=sys.stderr)
+    _say(log, line, progress)
     return dataclasses.replace(study, error=error, pilot=record)
 
 
@@ -356,9 +359,7 @@ def run_study(
                     f"resuming: {stored} simulator run(s) stored in {STORE_NAME} are reused, not "
                     "rerun (the log L evaluations below count from 0 and pass them quickly)"
                 )
-                log.info(line)
-                if progress:
-                    print(line, file=sys.stderr)
+                _say(log, line, progress)
             started = time.perf_counter()
             evaluator = study_evaluator(study, store, executor, progress=progress)
             if isinstance(study.error, TrackStatisticsPlan):
@@ -371,9 +372,7 @@ def run_study(
                     f"evaluations {item.n_evaluations}, simulator runs {evaluator.simulations_run} "
                     f"(+{evaluator.simulations_reused} reused)"
                 )
-                log.info(line)
-                if progress:
-                    print(line, file=sys.stderr)
+                _say(log, line, progress)
 
             settings = calibration_settings(config)
             if local_after_design and settings.local_search:
@@ -405,9 +404,7 @@ def run_study(
                     " (susp-bo calibrate ... --resume --budget N: the design and the early"
                     " iterations come from the store, not the simulator)"
                 )
-            log.info(line)
-            if progress:
-                print(line, file=sys.stderr)
+            _say(log, line, progress)
         payload = json_ready(
             result_payload(study, result, n_simulations, time.perf_counter() - started)
             | ({"warm_start": design_note or {}} if design is not None else {})

@@ -7,7 +7,9 @@ track process. Session 32 measured eq. 4 there (``benchmarks/coverage.py --error
 run, channel and frequency band as an independent draw, while every channel responds to
 the same track, neighbouring bands share Welch bins and the μ simulated tracks are one
 fixed draw shared by every run. :mod:`.track_match` refuses such results; this module is
-a model that is calibrated there.
+a model that is calibrated there. A study selects it with ``[output_error] model =
+"track_statistics"`` (:mod:`.study_track_statistics`; its pilot,
+:mod:`.track_statistics_pilot`).
 
 **Model.** On a track realization x a run's log-amplitude spectrum (C x F, flattened to
 p = C·F values) is y(x, w) = m(w) + e(x), e of mean 0 and covariance Σ (p x p, strongly
@@ -57,7 +59,7 @@ Measured (session 33) through the whole calibration loop on the linearised rig
 --unknown-tracks --local-search --seed 33 --workers 2 --out OUT``: truths from the prior,
 ν = μ = 3 tracks that are not the runs' own, the demo's settings, M = 100 pilot runs at the
 middle of C_w and again at a Gauss–Newton fit of the summaries, 404–524 pilot simulations
-outside the budget, ``benchmarks/track_statistics_pilot.py``): 269/280 intervals hold the
+outside the budget, :mod:`.track_statistics_pilot`): 269/280 intervals hold the
 truth (binomial range [258, 273]), pooled rank KS p 0.43, z rms 0.98 (0.87–1.14 per
 parameter) — where eq. 4 gave 152/280 and z rms 6.4 on the same kind of data. 9 of the 40
 results were ``trusted`` (61/63 of their intervals inside), none with |z| > 3; the others

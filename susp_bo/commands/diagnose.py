@@ -230,6 +230,16 @@ def run_diagnose(args: argparse.Namespace) -> int:
         write_json(out / DOCUMENT_NAME, json_ready(document))
         print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
         return 0
+    if config.output_error.model == "track_statistics":
+        raise UsageError(
+            f"RESULT_DIR: {result_dir} was calibrated with [output_error] model = "
+            "'track_statistics' (the runs' tracks not measured); diagnose compares each run "
+            "with the simulation on its own measured track, band by band, which such a study "
+            "does not have: a model error shows there as the lack of fit between the runs "
+            "(result.json reliability evidence lack_of_fit_ratio) or parameters at C_w's "
+            "bounds (at_bound); measure the tracks and calibrate with model = 'paired' to "
+            "diagnose (nothing was computed)"
+        )
     store = result_dir / STORE_NAME
     if not store.is_file():  # prepare_study's "--resume" wording is calibrate's, not ours
         raise UsageError(

@@ -145,3 +145,18 @@ def test_a_pilot_too_small_for_q_is_refused_before_any_simulation(
     assert "output_error.pilot_runs: 20 is not allowed; expected an integer >= 50" in (
         refused.stderr
     )
+
+
+def test_diagnose_refuses_a_study_without_the_runs_own_tracks(
+    statistics_study, tmp_path: Path
+) -> None:
+    out, _ = statistics_study
+    refused = subprocess.run(
+        [sys.executable, "-m", "susp_bo", "diagnose", str(out), "--out", str(tmp_path / "d"),
+         "--force"],
+        capture_output=True, text=True, check=False, timeout=300,
+    )  # fmt: skip
+    assert refused.returncode == 2, refused.stderr[-2000:]
+    assert "model = 'track_statistics'" in refused.stderr
+    assert "Traceback" not in refused.stderr
+    assert not (tmp_path / "d").exists()
