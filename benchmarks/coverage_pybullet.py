@@ -162,6 +162,11 @@ def run_experiment(
         for index, run in enumerate(runs):
             save_run(run, data / f"run_{index:03d}.h5")
     config = demo_config(folder, smoke=False, seed=seed)
+    if error == "track_statistics":  # each experiment its own model and pilot tracks
+        _, data_seed = sbc_draw(seed, experiment, len(names))
+        config = dataclasses.replace(
+            config, seeds=dataclasses.replace(config.seeds, calibration=data_seed)
+        )
     config = dataclasses.replace(
         config,
         rig=str(rig),

@@ -44,7 +44,6 @@ Example (also in the README; the test suite loads this one)::
     # correlation_length_hz = 0.5   # unpaired only: frequency correlation length (Hz)
     sensor_noise_m_s2 = 0.005     # accelerometer noise floor; omit = from the runs' metadata
     # pilot_runs = 100      # track_statistics only: pilot runs per stage, outside the budget
-    # simulated_tracks = 3  # track_statistics only: μ model track realizations (omit = ν)
 
     [search]
     local = true            # Gauss–Newton on the spectra after EGO (needed for "paired")

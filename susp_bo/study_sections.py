@@ -212,8 +212,8 @@ class OutputErrorConfig:
             usual budgets yet (README, "Which output-error model applies"), so it is opt-in.
             ``"track_statistics"``: the runs' tracks were not measured (their geometry in
             the run files is not used), only the track process is known (the rig's
-            ``simulation.track_quality`` PSD): the model simulates ``simulated_tracks``
-            synthetic realizations and compares q summaries of the mean spectra, with
+            ``simulation.track_quality`` PSD): the model simulates ν synthetic
+            realizations and compares q summaries of the mean spectra, with
             weights and covariance from a pilot of ``pilot_runs`` runs on fresh
             realizations, twice (:mod:`susp_bo.calibration.study_track_statistics`).
         sigma: ``"estimate"`` (from the data), one σ for every channel, or a
@@ -229,8 +229,6 @@ class OutputErrorConfig:
             else 0.
         pilot_runs: ``track_statistics`` only: M pilot runs per stage (None = 100; at
             least max(10 q, 50), checked when q is known); outside the budget.
-        simulated_tracks: ``track_statistics`` only: μ synthetic track realizations the
-            model simulates at every w (None = ν, the measured runs' count).
     """
 
     section: ClassVar[str] = "output_error"
@@ -239,7 +237,6 @@ class OutputErrorConfig:
     correlation_length_hz: float | None = None
     sensor_noise_m_s2: float | None = None
     pilot_runs: int | None = None
-    simulated_tracks: int | None = None
 
     def __post_init__(self) -> None:
         if self.model not in OUTPUT_ERROR_MODELS:
@@ -259,15 +256,12 @@ class OutputErrorConfig:
                     )
             if self.pilot_runs is not None:
                 _integer("output_error.pilot_runs", self.pilot_runs, MINIMUM_PILOT_RUNS)
-            if self.simulated_tracks is not None:
-                _integer("output_error.simulated_tracks", self.simulated_tracks, 1)
         else:
-            for name in ("pilot_runs", "simulated_tracks"):
-                if getattr(self, name) is not None:
-                    raise ValueError(
-                        f"output_error.{name}: {getattr(self, name)!r} is not allowed with "
-                        f"model = {self.model!r}; it belongs to model = 'track_statistics'"
-                    )
+            if self.pilot_runs is not None:
+                raise ValueError(
+                    f"output_error.pilot_runs: {self.pilot_runs!r} is not allowed with "
+                    f"model = {self.model!r}; it belongs to model = 'track_statistics'"
+                )
         if self.model == "paired" and self.correlation_length_hz is not None:
             raise ValueError(
                 f"output_error.correlation_length_hz: {self.correlation_length_hz!r} is not "

@@ -284,6 +284,13 @@ class LikelihoodEvaluator:
         """(b,) log L of eq. 4 (or the paired model) of (b x μ x C x F) spectra, no
         simulation; ``exact`` skips the paired model's rounding (for derivatives)."""
         H = np.asarray(H, dtype=np.float64)
+        if getattr(self.error, "model", None) == "track_statistics" and not isinstance(
+            self.error, TrackStatisticsError
+        ):
+            raise ValueError(
+                "error: the summary likelihood's plan, whose pilot has not run; run_study "
+                "runs it first (susp_bo.calibration.study.with_pilot)"
+            )
         if isinstance(self.error, PairedOutputError):
             value = paired_log_likelihood(self.measured, H, self.error, exact=exact)
         elif isinstance(self.error, TrackStatisticsError):

@@ -34,6 +34,7 @@ from susp_bo.calibration.study_inputs import (
 )
 from susp_bo.calibration.study_track_statistics import (
     TrackStatisticsPlan,
+    check_exchangeable_runs,
     model_tracks,
     plan_for,
 )
@@ -281,9 +282,18 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     bounds = spec.calibration_bounds[:, columns]
     noise = sensor_noise(config, runs)
     if config.output_error.model == "track_statistics":
+        check_exchangeable_runs(runs, run_names(runs, config.data))
+        if config.output_error.sensor_noise_m_s2 is None and any(
+            "noise_m_s2" not in (run.metadata or {}) for run in runs
+        ):
+            raise StudyError(
+                "output_error.sensor_noise_m_s2: not given, and the runs' metadata do not "
+                "record it; model = 'track_statistics' draws the sensor noise into its pilot "
+                "runs (its share of the summaries' covariance): give the accelerometers' "
+                "noise in m/s^2 rms (0 if it is negligible)"
+            )
         plan = plan_for(
             config.output_error.pilot_runs,
-            config.output_error.simulated_tracks,
             len(names),
             len(runs),
             config.seeds.calibration,
@@ -316,10 +326,26 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
 def store_fingerprint(
     study: PreparedStudy, spec: RigSpec | None = None, names: tuple[str, ...] | None = None
 ) -> dict[str, str]:
-    """What identifies the evaluations of ``study`` (or of ``spec``/``names`` on its data)."""
+    """What identifies the evaluations of ``study`` (or of ``spec``/``names`` on its data).
+
+    With the summary likelihood the tracks are synthetic, so the runs' content digests are
+    part of the data too (its pilot's second point is fitted to them).
+
+    Raises:
+        ValueError: a study whose summary likelihood's pilot has run (fingerprint the study
+            that ``prepare_study`` returned).
+    """
+    if isinstance(study.error, TrackStatisticsError):
+        raise ValueError(
+            "store_fingerprint: the study's pilot has run; take the fingerprint of the "
+            "prepared study (its TrackStatisticsPlan)"
+        )
+    data = [t.track_id for t in study.tracks]
+    if isinstance(study.error, TrackStatisticsPlan):
+        data += [run.content_digest() for run in study.runs]
     return study_fingerprint(
         (spec or study.spec).fingerprint(),
-        json.dumps([t.track_id for t in study.tracks]),
+        json.dumps(data),
         names or study.names,
         output_error=json.dumps(dataclasses.asdict(study.error)),
         output_error_model=study.config.output_error.model,

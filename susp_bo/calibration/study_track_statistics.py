@@ -5,13 +5,14 @@ geometry is not used): only the track process is known, the rig's
 ``simulation.track_quality`` PSD (:meth:`~susp_bo.rig.track.TrackGeometry.synthetic`). The
 study then
 
-1. simulates every w on μ synthetic realizations of that process
-   (:func:`model_tracks`: fixed, seeded by ``seeds.calibration``; track j takes run
-   j mod ν's speed profile, line design and length);
+1. simulates every w on μ = ν synthetic realizations of that process
+   (:func:`model_tracks`: fixed, seeded by ``seeds.calibration``, under the runs' speed
+   profile and line design; the runs must share them and their record,
+   :func:`check_exchangeable_runs`);
 2. before the calibration, runs the summary likelihood's two-stage pilot
    (:mod:`.track_statistics_pilot`): M runs at the middle of C_w on fresh realizations
-   with drawn sensor noise (:func:`~susp_bo.calibration.evaluation.simulate_noisy_spectra`,
-   pilot run m takes run m mod ν's speed, design and length), a Gauss–Newton fit of the q
+   with drawn sensor noise (:func:`~susp_bo.calibration.evaluation.simulate_noisy_spectra`),
+   a Gauss–Newton fit of the q
    summaries on the model tracks, then M runs again at that fit (:func:`run_pilot`);
 3. calibrates with the resulting :class:`~.track_statistics.TrackStatisticsError`.
 
@@ -19,11 +20,12 @@ Every pilot run and every model-track run goes through the study's store and exe
 (keyed by the pilot point and the run's track id, which names its stage, index and seed),
 so a resumed study replays the pilot from the store bit for bit and reaches the same error.
 The pilot's simulations are outside the budget; ``result.json["output_error"]`` records
-them (:func:`pilot_payload`).
+them (:func:`pilot_payload`: the distinct simulator runs it needed).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -72,13 +74,13 @@ class TrackStatisticsPlan:
 
 def plan_for(
     pilot_runs: int | None,
-    simulated_tracks: int | None,
     q: int,
     n_measured: int,
     seed: int,
     track_quality: str,
 ) -> TrackStatisticsPlan:
-    """The plan a study's ``[output_error]`` asks for, checked against q.
+    """The plan a study's ``[output_error]`` asks for, checked against q (μ = ν: the lack
+    of fit between the runs compares run i with model track i, :mod:`.lack_of_fit`).
 
     Raises:
         StudyError: ``pilot_runs`` below :func:`.track_statistics.minimum_pilot_runs` (q).
@@ -91,28 +93,80 @@ def plan_for(
             f"parameters; expected at least {need} (max(10 q, 50): the pilot's covariance of "
             "the q summaries needs them)"
         )
-    mu = n_measured if simulated_tracks is None else simulated_tracks
-    return TrackStatisticsPlan(runs, n_measured, mu, seed, track_quality)
+    return TrackStatisticsPlan(runs, n_measured, n_measured, seed, track_quality)
+
+
+def _design_arrays(run: MeasuredRun) -> tuple[np.ndarray, ...] | None:
+    design = run.design
+    if design is None:
+        return None
+    return (design.chainage_m, design.curvature_1_m, design.cant_m, design.gradient)
+
+
+def check_exchangeable_runs(runs: Sequence[MeasuredRun], names: Sequence[str]) -> None:
+    """Refuse runs that are not draws of one experiment: the summary likelihood's ȳ, h̄ and
+    pilot treat every run as the same speed profile, record and line design on another
+    realization of the track process (κ = 1/ν + 1/μ; C from runs of one template).
+
+    Args:
+        runs: the ν measured runs.
+        names: their file names, for the message.
+
+    Raises:
+        StudyError: naming the first run that differs from the first one and in what.
+    """
+    first = runs[0]
+    for name, run in zip(names[1:], runs[1:]):
+        differs = []
+        if not (
+            np.array_equal(run.speed.time_s, first.speed.time_s)
+            and np.array_equal(run.speed.speed_m_s, first.speed.speed_m_s)
+        ):
+            differs.append("speed profile")
+        if run.n_samples != first.n_samples or run.time_offset_s != first.time_offset_s:
+            differs.append(
+                f"record ({run.n_samples} samples from {run.time_offset_s:g} s against "
+                f"{first.n_samples} from {first.time_offset_s:g} s)"
+            )
+        a, b = _design_arrays(run), _design_arrays(first)
+        if (a is None) != (b is None) or (
+            a is not None and not all(np.array_equal(x, y) for x, y in zip(a, b or ()))
+        ):
+            differs.append("line design")
+        if differs:
+            raise StudyError(
+                f"data: {name} differs from {names[0]} in its {', '.join(differs)}; "
+                "output_error.model = 'track_statistics' compares the mean spectrum of runs "
+                "of one speed profile, record length and line design on different track "
+                "realizations: calibrate such runs as separate studies, cut them to one "
+                "record, or use another output-error model"
+            )
 
 
 def _synthetic_run(
-    template: MeasuredRun, track_id: str, quality: str, seed: Sequence[int]
+    template: MeasuredRun, length_m: float, track_id: str, quality: str, seed: Sequence[int]
 ) -> TrackRun:
-    """A realization of the track process under ``template``'s speed, design and length."""
+    """A realization of the track process, ``length_m`` long, under ``template``'s speed
+    profile and line design."""
     track_seed = int(np.random.SeedSequence(list(seed)).generate_state(1)[0])
     geometry = TrackGeometry.synthetic(
         quality=quality,  # type: ignore[arg-type]
-        length_m=template.geometry.length_m,
+        length_m=length_m,
         seed=track_seed,
     )
     return TrackRun(track_id, geometry, template.speed, template.design)
+
+
+def _length_m(runs: Sequence[MeasuredRun]) -> float:
+    return max(run.geometry.length_m for run in runs)
 
 
 def model_tracks(runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan) -> tuple[TrackRun, ...]:
     """The μ synthetic track realizations the model simulates at every w (module docstring)."""
     return tuple(
         _synthetic_run(
-            runs[j % len(runs)],
+            runs[0],
+            _length_m(runs),
             f"model{j:03d}-seed{plan.seed}",
             plan.track_quality,
             (plan.seed, MODEL_TRACKS_TAG, j),
@@ -127,7 +181,8 @@ def pilot_tracks(
     """The M fresh realizations of one pilot stage (0 or 1)."""
     return tuple(
         _synthetic_run(
-            runs[m % len(runs)],
+            runs[0],
+            _length_m(runs),
             f"pilot{stage}-{m:03d}-seed{plan.seed}",
             plan.track_quality,
             (plan.seed, PILOT_TRACKS_TAG, stage, m),
@@ -169,7 +224,11 @@ def run_pilot(
     """
     names = evaluator.names
 
+    touched: set[tuple[bytes, str]] = set()
+
     def spectra(W: np.ndarray) -> np.ndarray:
+        W = np.atleast_2d(np.asarray(W, dtype=np.float64))
+        touched.update((w.tobytes(), t.track_id) for w in W for t in evaluator.tracks)
         H = evaluator.spectra(W)
         bad = np.flatnonzero(~np.all(np.isfinite(H.reshape(len(H), -1)), axis=1))
         if bad.size:
@@ -200,6 +259,7 @@ def run_pilot(
             )
             for m, track in enumerate(pilot_tracks(runs, plan, stage))
         ]
+        touched.update((np.asarray(w).tobytes(), track_id) for w, track_id, _ in items)
         found = evaluator.stored_runs(
             items, simulate_noisy_spectra, desc=f"pilot stage {stage + 1}"
         )
@@ -214,9 +274,13 @@ def run_pilot(
         return np.stack([np.asarray(f) for f in found])
 
     try:
-        return two_stage_error(spectra, pilot_runs, measured, bounds, plan.n_simulated)
+        error, record = two_stage_error(spectra, pilot_runs, measured, bounds, plan.n_simulated)
+    except StudyError:
+        raise
     except ValueError as error:
         raise StudyError(f"output_error.model = 'track_statistics': the pilot: {error}") from None
+    # a point the fit and the Jacobian share is one stored run: count the distinct ones
+    return error, dataclasses.replace(record, simulations=len(touched))
 
 
 def pilot_payload(

@@ -223,13 +223,6 @@ def run_diagnose(args: argparse.Namespace) -> int:
             f"RESULT_DIR: {error}; diagnose (and resuming the calibration) needs this study "
             "file as susp-bo calibrate wrote it, and what it names: restore it"
         ) from error
-    reliability = calibration_reliability(payload)
-    if not reliability.fit_finished and not force:
-        out = output_folder(args.out)
-        document = _not_trusted_document(reliability, result_dir, payload, payload.get("rig"))
-        write_json(out / DOCUMENT_NAME, json_ready(document))
-        print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
-        return 0
     if config.output_error.model == "track_statistics":
         raise UsageError(
             f"RESULT_DIR: {result_dir} was calibrated with [output_error] model = "
@@ -240,6 +233,13 @@ def run_diagnose(args: argparse.Namespace) -> int:
             "bounds (at_bound); measure the tracks and calibrate with model = 'paired' to "
             "diagnose (nothing was computed)"
         )
+    reliability = calibration_reliability(payload)
+    if not reliability.fit_finished and not force:
+        out = output_folder(args.out)
+        document = _not_trusted_document(reliability, result_dir, payload, payload.get("rig"))
+        write_json(out / DOCUMENT_NAME, json_ready(document))
+        print(f"susp-bo diagnose: {document['sentence']}", file=sys.stderr)
+        return 0
     store = result_dir / STORE_NAME
     if not store.is_file():  # prepare_study's "--resume" wording is calibrate's, not ours
         raise UsageError(

@@ -1,4 +1,5 @@
-"""A study's summary likelihood: its plan, model tracks and pilot tracks (no simulation)."""
+"""A study's summary likelihood: its plan, the runs it accepts, model and pilot tracks (no
+simulation)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import pytest
 from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.calibration.study_track_statistics import (
     TrackStatisticsPlan,
+    check_exchangeable_runs,
     model_tracks,
     pilot_tracks,
     plan_for,
@@ -21,32 +23,42 @@ from susp_bo.rig.track import TrackGeometry
 
 @pytest.fixture(scope="module")
 def runs(fast_rig: Path) -> list:
-    """Two short runs of different lengths (only their speed, design and length are used)."""
-    spec = load_rig_spec(fast_rig)
-    return [
-        *synthesize_runs(spec, nu=1, seed=3),
-        *synthesize_runs(spec, nu=1, seed=4, duration_s=6.0),
-    ]
+    """Two runs of one experiment (speed, record, no design) on their own tracks."""
+    return synthesize_runs(load_rig_spec(fast_rig), nu=2, seed=3)
 
 
 def test_the_plan_takes_the_defaults_and_refuses_a_pilot_too_small_for_q() -> None:
-    plan = plan_for(None, None, q=3, n_measured=2, seed=5, track_quality="low")
+    plan = plan_for(None, q=3, n_measured=2, seed=5, track_quality="low")
     assert plan == TrackStatisticsPlan(100, 2, 2, 5, "low")
     assert plan.model == "track_statistics"
-    assert plan_for(70, 4, 7, 3, 0, "high").n_simulated == 4
+    assert plan_for(70, 7, 3, 0, "high").n_simulated == 3  # μ = ν
     with pytest.raises(StudyError, match=r"pilot_runs: 60 .* q = 7 .* at least 70"):
-        plan_for(60, None, 7, 3, 0, "low")
+        plan_for(60, 7, 3, 0, "low")
+
+
+def test_runs_of_another_speed_or_record_are_refused_naming_the_run(
+    fast_rig: Path, runs: list
+) -> None:
+    spec = load_rig_spec(fast_rig)
+    names = ["a.h5", "b.h5", "c.h5"]
+    check_exchangeable_runs(runs, names[:2])  # one experiment: accepted
+    shorter = synthesize_runs(spec, nu=1, seed=4, duration_s=6.0)
+    with pytest.raises(StudyError, match=r"data: c\.h5 differs from a\.h5 in its .*record"):
+        check_exchangeable_runs([*runs, *shorter], names)
+    slower = synthesize_runs(spec, nu=1, seed=4, speed_m_s=70.0)
+    with pytest.raises(StudyError, match=r"c\.h5 differs from a\.h5 in its speed profile"):
+        check_exchangeable_runs([*runs, *slower], names)
 
 
 def test_model_and_pilot_tracks_are_seeded_realizations_under_the_runs_speed_and_length(
     runs: list,
 ) -> None:
-    plan = plan_for(50, 3, q=2, n_measured=2, seed=11, track_quality="low")
+    plan = plan_for(50, q=2, n_measured=2, seed=11, track_quality="low")
     tracks = model_tracks(runs, plan)
-    assert [t.track_id for t in tracks] == [f"model{j:03d}-seed11" for j in range(3)]
+    assert [t.track_id for t in tracks] == [f"model{j:03d}-seed11" for j in range(2)]
     for j, track in enumerate(tracks):
-        template = runs[j % 2]
-        assert track.speed is template.speed and track.design is template.design
+        template = runs[j]
+        assert track.speed is runs[0].speed and track.design is runs[0].design
         assert track.geometry.length_m == pytest.approx(template.geometry.length_m, abs=0.25)
         assert not np.array_equal(
             track.geometry.vertical_m[:100], template.geometry.vertical_m[:100]
@@ -58,18 +70,18 @@ def test_model_and_pilot_tracks_are_seeded_realizations_under_the_runs_speed_and
     stage0, stage1 = pilot_tracks(runs, plan, 0), pilot_tracks(runs, plan, 1)
     assert len(stage0) == len(stage1) == 50
     ids = {t.track_id for t in (*tracks, *stage0, *stage1)}
-    assert len(ids) == 3 + 100  # every realization its own key in the store
+    assert len(ids) == 2 + 100  # every realization its own key in the store
     verticals = [t.geometry.vertical_m[:200] for t in (*tracks, *stage0[:5], *stage1[:5])]
     assert len({v.tobytes() for v in verticals}) == len(verticals)  # all different draws
     # another seed, other realizations
-    other = model_tracks(runs, plan_for(50, 3, 2, 2, 12, "low"))
+    other = model_tracks(runs, plan_for(50, 2, 2, 12, "low"))
     assert not np.array_equal(other[0].geometry.vertical_m, tracks[0].geometry.vertical_m)
 
 
 def test_the_realizations_follow_the_rigs_track_psd(runs: list) -> None:
     """The pilot's tracks are draws of the PSD the plan names: their rms matches a direct draw."""
-    low = pilot_tracks(runs, plan_for(50, 1, 1, 2, 0, "low"), 0)
-    high = pilot_tracks(runs, plan_for(50, 1, 1, 2, 0, "high"), 0)
+    low = pilot_tracks(runs, plan_for(50, 1, 2, 0, "low"), 0)
+    high = pilot_tracks(runs, plan_for(50, 1, 2, 0, "high"), 0)
     rms_low = np.sqrt(np.mean([np.mean(t.geometry.vertical_m**2) for t in low]))
     rms_high = np.sqrt(np.mean([np.mean(t.geometry.vertical_m**2) for t in high]))
     reference = np.sqrt(

@@ -5,6 +5,7 @@ the uninterrupted result, and what the pilot gives is what ``result.json`` says.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -71,11 +72,11 @@ def test_the_pilot_runs_through_the_store_and_result_json_records_it(statistics_
     assert len(pilot) == len(set(pilot)) == 100  # 2 stages x M fresh realizations
     model = {k for k, _ in keys if not k.startswith("pilot")}
     assert model == {"model000-seed0", "model001-seed0"}  # never the runs' own tracks
-    # the pilot's count: its runs and its Gauss–Newton points on the model tracks; the
-    # loop's 10 evaluations on the μ = 2 tracks are the rest of the store
-    assert error["pilot_simulations"] + 2 * payload["n_evaluations"] >= len(keys)
+    # the pilot's distinct runs (its 100 and its Gauss–Newton and Jacobian points on the
+    # μ = 2 model tracks) and the loop's 10 evaluations on them are the whole store
+    assert error["pilot_simulations"] + 2 * payload["n_evaluations"] == len(keys)
     assert payload["n_simulations"] == len(keys)
-    assert error["pilot_simulations"] >= 100 + 2 * 2 * 2  # + the Jacobian's 2 q points x μ
+    assert error["pilot_simulations"] > 100 + 2 * 2 * 2 * 2  # + 2 Jacobians' 2 q points x μ
     lower, upper = np.array(payload["bounds"]).T
     point = np.array(list(error["pilot_point"].values()))
     assert np.all((lower <= point) & (point <= upper))
@@ -160,3 +161,46 @@ def test_diagnose_refuses_a_study_without_the_runs_own_tracks(
     assert "model = 'track_statistics'" in refused.stderr
     assert "Traceback" not in refused.stderr
     assert not (tmp_path / "d").exists()
+
+
+def test_the_store_fingerprint_covers_the_runs_and_unknown_noise_is_refused(
+    fast_rig, fast_data: Path, tmp_path: Path
+) -> None:
+    """The tracks are synthetic, so the runs themselves must identify the store (a resume
+    on other runs is refused); the pilot draws the sensor noise, so it must be known."""
+    from susp_bo.calibration.study_inputs import StudyError
+    from susp_bo.calibration.study_preparation import prepare_study, store_fingerprint
+    from susp_bo.data.run_files import load_run, save_run
+    from susp_bo.study_config import OutputErrorConfig, StudyConfig
+    from tests.integration.conftest import FAST_PARAMETERS
+
+    def config(data: Path, **error: object) -> StudyConfig:
+        return StudyConfig(
+            rig=str(fast_rig),
+            data=data,
+            out=tmp_path / "out",
+            parameters=FAST_PARAMETERS,
+            output_error=OutputErrorConfig(model="track_statistics", **error),
+        )
+
+    files = sorted(fast_data.glob("run_*.h5"))
+    edited = tmp_path / "edited"
+    edited.mkdir()
+    for index, file in enumerate(files):
+        run = load_run(file)
+        if index == 1:  # the same experiment, other accelerations
+            run = dataclasses.replace(run, accelerations_m_s2=run.accelerations_m_s2 * 1.01)
+        save_run(run, edited / file.name)
+    before = store_fingerprint(prepare_study(config(fast_data)))
+    after = store_fingerprint(prepare_study(config(edited)))
+    assert before != after
+    assert {k for k in before if before[k] != after[k]} == {"data"}
+    silent = tmp_path / "silent"
+    silent.mkdir()
+    for file in files:
+        run = load_run(file)
+        metadata = {k: v for k, v in run.metadata.items() if k != "noise_m_s2"}
+        save_run(dataclasses.replace(run, metadata=metadata), silent / file.name)
+    with pytest.raises(StudyError, match="sensor_noise_m_s2: not given"):
+        prepare_study(config(silent))
+    assert prepare_study(config(silent, sensor_noise_m_s2=0.005)).noise_m_s2 == 0.005
