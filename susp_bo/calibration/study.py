@@ -10,10 +10,14 @@ against the rig's channels and band, the output folder and its store;
    track realization);
 2. the output error B is set (``[output_error] model``): ``unpaired`` (default:
    eq. 4's mixture over tracks; σ_B per channel from the scatter of the measured
-   spectra between runs, or fixed in the config) or ``paired`` (every run has its
+   spectra between runs, or fixed in the config), ``paired`` (every run has its
    own measured track, so run i is compared with h(x_i, w) only; B = the Welch
    statistics of the sensor noise + a per-channel model error, profiled or fixed,
-   :mod:`susp_bo.calibration.paired_error`; opt-in, see the README);
+   :mod:`susp_bo.calibration.paired_error`; opt-in, see the README) or
+   ``track_statistics`` (the runs' tracks not measured: the model simulates synthetic
+   realizations of the track process and compares q summaries, with weights and
+   covariance from a pilot run here before the loop, :func:`with_pilot`,
+   :mod:`susp_bo.calibration.study_track_statistics`);
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
    simulator evaluation going through the evaluation store and the executor;
 4. ``result.json``, the config used, the figures and the log are written, with
