@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import sqlite3
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -87,3 +92,43 @@ def uninterrupted(fast_rig, fast_data, tmp_path_factory) -> Path:
     done = calibrate_cli(config)
     assert done.returncode == 0, done.stderr[-3000:]
     return folder / "out"
+
+
+def stored_rows(store: Path, columns: str = "key") -> list[tuple]:
+    """``columns`` of every evaluation in ``store``, in the order recorded; [] while the
+    file or its tables are still being made (read-only: a running study may hold it)."""
+    if not store.exists():
+        return []
+    try:
+        db = sqlite3.connect(f"file:{store}?mode=ro", uri=True)
+        try:
+            return db.execute(f"SELECT {columns} FROM evaluations ORDER BY id").fetchall()
+        finally:
+            db.close()
+    except sqlite3.DatabaseError:
+        return []
+
+
+def calibrate_killed(config: Path, store: Path, rows: int, timeout_s: float = 300) -> int:
+    """``python -m susp_bo calibrate CONFIG``, killed with SIGKILL (its pool workers too) as
+    soon as ``store`` holds ``rows`` evaluations; returns its exit status.
+
+    Fails the test if the study ends before it could be killed.
+    """
+    process = subprocess.Popen(
+        [sys.executable, "-m", "susp_bo", "calibrate", str(config)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < deadline and len(stored_rows(store)) < rows:
+            assert process.poll() is None, "the study ended before it could be killed"
+            time.sleep(0.05)
+        os.kill(process.pid, signal.SIGKILL)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)  # its orphaned pool workers too
+        process.wait(timeout=30)
+    return process.returncode

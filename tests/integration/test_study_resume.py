@@ -5,19 +5,16 @@ results folder unmade."""
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
 import shutil
 import signal
 import sqlite3
-import subprocess
-import sys
-import time
 import tomllib
 from pathlib import Path
 
 import pytest
+
+from tests.integration.conftest import calibrate_killed
 
 pytestmark = pytest.mark.slow
 
@@ -37,14 +34,6 @@ def _rows(store: Path) -> list[tuple[str, str, int, str]]:
         ).fetchall()
     finally:
         db.close()
-
-
-def _recorded(store: Path) -> int:
-    """Rows in the store so far; 0 while the file or its tables are still being created."""
-    try:
-        return len(_rows(store)) if store.exists() else 0
-    except sqlite3.DatabaseError:
-        return 0
 
 
 def test_uninterrupted_study_writes_the_results_folder(uninterrupted: Path) -> None:
@@ -76,24 +65,9 @@ def test_kill_9_mid_batch_then_resume_gives_the_same_result(
     out = tmp_path / "out"
     config = study_writer(tmp_path, fast_rig, fast_data, out)
     store = out / "evaluations.sqlite"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "susp_bo", "calibrate", str(config)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    deadline = time.monotonic() + 300
-    try:
-        # the first batch is the 6-point design on 2 tracks (12 simulations): kill inside it
-        while time.monotonic() < deadline and _recorded(store) < 5:
-            assert process.poll() is None, "the study ended before it could be killed"
-            time.sleep(0.05)
-        os.kill(process.pid, signal.SIGKILL)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGKILL)  # its orphaned pool workers too
-        process.wait(timeout=30)
-    assert process.returncode == -signal.SIGKILL
+    # the first batch is the 6-point design on 2 tracks (12 simulations): kill inside it
+    returncode = calibrate_killed(config, store, rows=5)
+    assert returncode == -signal.SIGKILL
     before = {key: created for key, _, _, created in _rows(store)}
     assert 5 <= len(before) < 20
     assert not (out / "result.json").exists()

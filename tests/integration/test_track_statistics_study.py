@@ -4,20 +4,18 @@ the uninterrupted result, and what the pilot gives is what ``result.json`` says.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import math
-import os
 import signal
-import sqlite3
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from tests.integration.conftest import calibrate_killed, stored_rows
 
 pytestmark = pytest.mark.slow
 
@@ -30,16 +28,7 @@ pilot_runs = 50
 
 def _keys(store: Path) -> list[tuple[str, str]]:
     """(track id, status) of every stored evaluation; [] while the store is being made."""
-    if not store.exists():
-        return []
-    try:
-        db = sqlite3.connect(f"file:{store}?mode=ro", uri=True)
-        try:
-            return db.execute("SELECT track_id, status FROM evaluations ORDER BY id").fetchall()
-        finally:
-            db.close()
-    except sqlite3.DatabaseError:
-        return []
+    return stored_rows(store, "track_id, status")
 
 
 def _stable(out: Path) -> dict:
@@ -99,22 +88,8 @@ def test_a_study_killed_inside_its_pilot_resumes_to_the_uninterrupted_result(
     config = study_writer(tmp_path, fast_rig, fast_data, out)
     config.write_text(config.read_text() + PILOT)
     store = out / "evaluations.sqlite"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "susp_bo", "calibrate", str(config)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    deadline = time.monotonic() + 300
-    try:  # stage 1's 50 pilot runs come first: kill among them
-        while time.monotonic() < deadline and len(_keys(store)) < 10:
-            assert process.poll() is None, "the study ended before it could be killed"
-            time.sleep(0.05)
-        os.kill(process.pid, signal.SIGKILL)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signal.SIGKILL)
-        process.wait(timeout=30)
+    # stage 1's 50 pilot runs come first: kill among them
+    assert calibrate_killed(config, store, rows=10) == -signal.SIGKILL
     before = _keys(store)
     assert 10 <= len(before) < 50 and all(k.startswith("pilot0-") for k, _ in before)
     resumed = calibrate_command(config, "--resume")
