@@ -157,38 +157,38 @@ def _synthetic_run(
     return TrackRun(track_id, geometry, template.speed, template.design)
 
 
-def _length_m(runs: Sequence[MeasuredRun]) -> float:
-    return max(run.geometry.length_m for run in runs)
+def _realizations(
+    runs: Sequence[MeasuredRun],
+    plan: TrackStatisticsPlan,
+    name: str,
+    key: tuple[int, ...],
+    count: int,
+) -> tuple[TrackRun, ...]:
+    """``count`` realizations under the first run's speed profile and line design, as long
+    as the longest run, named ``{name}{i:03d}-seed{seed}`` and seeded by (seed, *key, i)."""
+    length = max(run.geometry.length_m for run in runs)
+    return tuple(
+        _synthetic_run(
+            runs[0],
+            length,
+            f"{name}{i:03d}-seed{plan.seed}",
+            plan.track_quality,
+            (plan.seed, *key, i),
+        )
+        for i in range(count)
+    )
 
 
 def model_tracks(runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan) -> tuple[TrackRun, ...]:
     """The μ synthetic track realizations the model simulates at every w (module docstring)."""
-    return tuple(
-        _synthetic_run(
-            runs[0],
-            _length_m(runs),
-            f"model{j:03d}-seed{plan.seed}",
-            plan.track_quality,
-            (plan.seed, MODEL_TRACKS_TAG, j),
-        )
-        for j in range(plan.n_simulated)
-    )
+    return _realizations(runs, plan, "model", (MODEL_TRACKS_TAG,), plan.n_simulated)
 
 
 def pilot_tracks(
     runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan, stage: int
 ) -> tuple[TrackRun, ...]:
     """The M fresh realizations of one pilot stage (0 or 1)."""
-    return tuple(
-        _synthetic_run(
-            runs[0],
-            _length_m(runs),
-            f"pilot{stage}-{m:03d}-seed{plan.seed}",
-            plan.track_quality,
-            (plan.seed, PILOT_TRACKS_TAG, stage, m),
-        )
-        for m in range(plan.pilot_runs)
-    )
+    return _realizations(runs, plan, f"pilot{stage}-", (PILOT_TRACKS_TAG, stage), plan.pilot_runs)
 
 
 def _noise_seed(plan: TrackStatisticsPlan, stage: int, m: int) -> int:
