@@ -19,7 +19,9 @@ against the rig's channels and band, the output folder and its store;
    covariance from a pilot run here before the loop, :func:`with_pilot`,
    :mod:`susp_bo.calibration.study_track_statistics`);
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
-   simulator evaluation going through the evaluation store and the executor;
+   simulator evaluation going through the evaluation store and the executor (with
+   ``track_statistics``, the pilot's fit of the summaries is one point of the design,
+   :func:`pilot_start`);
 4. ``result.json``, the config used, the figures and the log are written, with
    the reliability verdict (:mod:`susp_bo.calibration.reliability`) in
    ``result.json["reliability"]`` and at the end of the log (the commands print its
@@ -71,6 +73,7 @@ from susp_bo.calibration.study_preparation import (
 from susp_bo.calibration.study_track_statistics import (
     TrackStatisticsPlan,
     pilot_payload,
+    pilot_point,
     run_pilot,
 )
 from susp_bo.calibration.surrogate import SurrogateSettings
@@ -194,6 +197,19 @@ def with_pilot(
     )
     _say(log, line, progress)
     return dataclasses.replace(study, error=error, pilot=record)
+
+
+def pilot_start(study: PreparedStudy) -> np.ndarray | None:
+    """(1 x q) the pilot's fit of the summaries (physical units), evaluated in the loop's
+    design in place of one space-filling point; None without a pilot.
+
+    The fit solves the q summary equations, so it sits in the summary likelihood's basin
+    when the pilot's Gauss–Newton fit found it; a space-filling design of ~2q + 1 points
+    can miss a narrow basin, and the search then settles elsewhere (session 34: the
+    yaw damper at its lower bound, 4.1 nats below the truth's log L, on the demo's rig).
+    Determined by the pilot's stored runs, so a resume replays it.
+    """
+    return None if study.pilot is None else pilot_point(study.pilot, study.bounds)[None, :]
 
 
 def _logger(out: Path) -> logging.Logger:
@@ -390,6 +406,7 @@ def run_study(
                 on_iteration=report,
                 expected_at_truth=expected_log_likelihood_at_truth(study),
                 design=design,
+                initial_points=pilot_start(study) if design is None else None,
             )
             # calibrate weighs the lack of fit between the runs (the evaluator exposes the
             # spectra and the measured runs); its Gauss–Newton points (if any) are stored

@@ -283,12 +283,16 @@ def run_pilot(
     return error, dataclasses.replace(record, simulations=len(touched))
 
 
+def pilot_point(record: PilotRecord, bounds: np.ndarray) -> np.ndarray:
+    """(q,) the pilot's fit of the summaries, its second point, in physical units."""
+    return bounds[0] + np.asarray(record.first_fit) * (bounds[1] - bounds[0])
+
+
 def pilot_payload(
     error: TrackStatisticsError, record: PilotRecord, bounds: np.ndarray, names: Sequence[str]
 ) -> dict[str, object]:
     """``result.json["output_error"]``'s pilot fields (physical units)."""
-    first = np.asarray(record.first_fit)
-    point = bounds[0] + first * (bounds[1] - bounds[0])
+    point = pilot_point(record, bounds)
     return {
         "pilot_runs": int(error.pilot_runs),
         "pilot_simulations": int(record.simulations),

@@ -13,6 +13,7 @@ from susp_bo.calibration.study_track_statistics import (
     TrackStatisticsPlan,
     check_exchangeable_runs,
     model_tracks,
+    pilot_point,
     pilot_tracks,
     plan_for,
 )
@@ -34,6 +35,14 @@ def test_the_plan_takes_the_defaults_and_refuses_a_pilot_too_small_for_q() -> No
     assert plan_for(70, 7, 3, 0, "high").n_simulated == 3  # μ = ν
     with pytest.raises(StudyError, match=r"pilot_runs: 60 .* q = 7 .* at least 70"):
         plan_for(60, 7, 3, 0, "low")
+
+
+def test_the_pilot_point_is_its_first_fit_in_physical_units() -> None:
+    from susp_bo.calibration.track_statistics_pilot import PilotRecord
+
+    bounds = np.array([[10.0, 0.5], [50.0, 8.0]])
+    record = PilotRecord(first_fit=(0.0, 0.4), simulations=7, shrinkage=0.1)
+    assert pilot_point(record, bounds).tolist() == [10.0, 0.5 + 0.4 * 7.5]
 
 
 def test_runs_of_another_speed_or_record_are_refused_naming_the_run(

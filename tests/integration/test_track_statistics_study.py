@@ -69,6 +69,11 @@ def test_the_pilot_runs_through_the_store_and_result_json_records_it(statistics_
     lower, upper = np.array(payload["bounds"]).T
     point = np.array(list(error["pilot_point"].values()))
     assert np.all((lower <= point) & (point <= upper))
+    # the loop evaluated the pilot's fit (its design holds it), on the model tracks: the
+    # pilot itself simulates there only Gauss–Newton points and central differences
+    rows = stored_rows(out / "evaluations.sqlite", "track_id, parameters_json")
+    model_points = [json.loads(p) for t, p in rows if t.startswith("model")]
+    assert point.tolist() in model_points  # the q calibrated values, in their order
     # the verdict's expectation of log L at the truth is the model's, from C in result.json
     covariance = np.array(error["summary_covariance"])
     kappa = 1 / payload["nu"] + 1 / payload["mu"]
