@@ -209,9 +209,9 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         expected_at_truth=at_truth if all(map(math.isfinite, at_truth)) else None,
         lack_of_fit=False,  # applied below, after the verdict before it is recorded
         # as a study does (session 35): the pilot's fit of the summaries is in the design
-        initial_points=None if zoom_box is not None or problem.pilot is None else (
-            bounds[0] + np.asarray(problem.pilot.first_fit) * (bounds[1] - bounds[0])
-        )[None, :],
+        initial_points=None
+        if zoom_box is not None or problem.pilot is None
+        else (bounds[0] + np.asarray(problem.pilot.first_fit) * (bounds[1] - bounds[0]))[None, :],
     )
     verdict_before = None if result.reliability is None else result.reliability.verdict
     result = with_lack_of_fit(result, problem, problem.measured)
