@@ -224,6 +224,39 @@ def check_results_folder(config: StudyConfig, resume: bool) -> None:
         )
 
 
+def check_runs_have_tracks(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -> None:
+    """Refuse runs without track geometry under an output-error model that simulates every
+    run on its own measured track (``unpaired``, ``paired``), before any simulation.
+
+    ``track_statistics`` simulates synthetic tracks and accepts them.
+
+    Raises:
+        StudyError: naming the first run file without geometry (and how many more), what
+            is missing and the two ways out.
+    """
+    model = config.output_error.model
+    if model == "track_statistics":
+        return
+    names = run_names(runs, config.data)
+    missing = [name for name, run in zip(names, runs) if run.geometry is None]
+    if not missing:
+        return
+    more = (
+        f" ({len(missing) - 1} more of the {len(runs)} runs have none: "
+        f"{', '.join(missing[1:4])}{', …' if len(missing) > 4 else ''})"
+        if len(missing) > 1
+        else ""
+    )
+    raise StudyError(
+        f"data: {config.data / missing[0]}: the run has no track geometry (its track was not "
+        f"measured: no geometry/ group){more}; output_error.model = {model!r} simulates "
+        "every run on its own measured track: calibrate runs on unmeasured track with "
+        '[output_error] model = "track_statistics" in a study .toml (their tracks known '
+        "only by their statistics), or add the measured track geometry to the run files "
+        '(README, "Measured data format") (nothing was simulated)'
+    )
+
+
 def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     """Check every input of a study and load its data (no simulation).
 
@@ -267,6 +300,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
             )
     except ValueError as error:
         raise StudyError(f"data: {error}{import_hint(config.data)}") from error
+    check_runs_have_tracks(config, runs)
     check_runs_rig(runs, spec.name, config.data)
     slowest = {name: _slowest_speed(run) for name, run in zip(run_names(runs, config.data), runs)}
     name = min(slowest, key=slowest.__getitem__)  # the slowest run decides (probe, s. 29)
@@ -299,7 +333,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
             config.seeds.calibration,
             spec.simulation.track_quality,
         )
-        tracks = model_tracks(runs, plan)
+        tracks = model_tracks(runs, plan, spec)
         error: OutputError | PairedOutputError | TrackStatisticsPlan = plan
     else:
         tracks = tuple(
@@ -329,7 +363,10 @@ def store_fingerprint(
     """What identifies the evaluations of ``study`` (or of ``spec``/``names`` on its data).
 
     With the summary likelihood the tracks are synthetic, so the runs' content digests are
-    part of the data too (its pilot's second point is fitted to them).
+    part of the data too (its pilot's second point is fitted to them). A run without
+    geometry has a digest of its own (:meth:`MeasuredRun.content_digest`), and the
+    realizations' length (:func:`.study_track_statistics.realization_length_m`) is named
+    in it as well.
 
     Raises:
         ValueError: a study whose summary likelihood's pilot has run (fingerprint the study
@@ -342,7 +379,10 @@ def store_fingerprint(
         )
     data = [t.track_id for t in study.tracks]
     if isinstance(study.error, TrackStatisticsPlan):
+        # the realizations' length too: ids name a realization's seed, not its length, and
+        # a store of session 34 (length then taken from the runs' geometry) is refused
         data += [run.content_digest() for run in study.runs]
+        data.append(f"realization_length_m={study.tracks[0].geometry.length_m!r}")
     return study_fingerprint(
         (spec or study.spec).fingerprint(),
         json.dumps(data),

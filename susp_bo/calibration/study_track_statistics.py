@@ -1,14 +1,15 @@
 """A study on tracks known only by their statistics (``[output_error] model = "track_statistics"``).
 
-The measured runs went over track stretches that were not measured (their run files'
-geometry is not used): only the track process is known, the rig's
-``simulation.track_quality`` PSD (:meth:`~susp_bo.rig.track.TrackGeometry.synthetic`). The
-study then
+The measured runs went over track stretches that were not measured (their run files may
+omit the geometry, and any geometry they hold is not used): only the track process is
+known, the rig's ``simulation.track_quality`` PSD
+(:meth:`~susp_bo.rig.track.TrackGeometry.synthetic`). The study then
 
 1. simulates every w on μ = ν synthetic realizations of that process
    (:func:`model_tracks`: fixed, seeded by ``seeds.calibration``, under the runs' speed
-   profile and line design; the runs must share them and their record,
-   :func:`check_exchangeable_runs`);
+   profile and line design, as long as :func:`realization_length_m` says — from the
+   speed record and the rig, never from a geometry —; the runs must share them and
+   their record, :func:`check_exchangeable_runs`);
 2. before the calibration, runs the summary likelihood's two-stage pilot
    (:mod:`.track_statistics_pilot`): M runs at the middle of C_w on fresh realizations
    with drawn sensor noise (:func:`~susp_bo.calibration.evaluation.simulate_noisy_spectra`),
@@ -40,6 +41,7 @@ from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.calibration.track_statistics import TrackStatisticsError, minimum_pilot_runs
 from susp_bo.calibration.track_statistics_pilot import PILOT_RUNS, PilotRecord, two_stage_error
 from susp_bo.data.measured import MeasuredRun
+from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.track import TrackGeometry
 
@@ -47,6 +49,9 @@ MODEL_TRACKS_TAG = 7001
 """Mixed into the seed of the model's track realizations."""
 PILOT_TRACKS_TAG = 7002
 """Mixed into the seeds of the pilot's track realizations and sensor noise."""
+REALIZATION_MARGIN_M = 10.0
+"""Track (m) a realization has beyond what the simulation reaches: the spare of
+:func:`susp_bo.rig.simulator.synthetic_track_length_m`, which made the synthetic runs."""
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,8 @@ def check_exchangeable_runs(runs: Sequence[MeasuredRun], names: Sequence[str]) -
     pilot treat every run as the same speed profile, record and line design on another
     realization of the track process (κ = 1/ν + 1/μ; C from runs of one template).
 
+    The runs' geometry (present or not) is not compared: the model never reads it.
+
     Args:
         runs: the ν measured runs.
         names: their file names, for the message.
@@ -157,16 +164,40 @@ def _synthetic_run(
     return TrackRun(track_id, geometry, template.speed, template.design)
 
 
+def realization_length_m(runs: Sequence[MeasuredRun], spec: RigSpec) -> float:
+    """Length (m) of every model and pilot track: what the longest run needs, one rule for
+    runs with geometry and without (a run's own geometry is never read).
+
+    A simulation of a run covers its whole speed record (warm-up included,
+    :meth:`susp_bo.rig.simulator.Rig.simulate`), so a run needs the distance of its speed
+    record plus the axle span — at least :func:`~susp_bo.data.run_validation.track_needed_m`,
+    which stops at the last acceleration sample — and the realization has
+    :data:`REALIZATION_MARGIN_M` more. For runs made by
+    :func:`~susp_bo.data.synthetic.synthesize_runs` this is the length of their own
+    tracks, to the sample, which the realizations had when they took the longest run's
+    geometry length (the test suite's fast rig: 780.0 m either way).
+
+    Args:
+        runs: the ν measured runs.
+        spec: the rig (its axle span, m).
+    """
+    span = axle_span_m(spec)
+    travelled = max(float(run.speed.distance_m(run.speed.duration_s)) for run in runs)
+    return travelled + span + REALIZATION_MARGIN_M
+
+
 def _realizations(
     runs: Sequence[MeasuredRun],
     plan: TrackStatisticsPlan,
+    spec: RigSpec,
     name: str,
     key: tuple[int, ...],
     count: int,
 ) -> tuple[TrackRun, ...]:
-    """``count`` realizations under the first run's speed profile and line design, as long
-    as the longest run, named ``{name}{i:03d}-seed{seed}`` and seeded by (seed, *key, i)."""
-    length = max(run.geometry.length_m for run in runs)
+    """``count`` realizations under the first run's speed profile and line design,
+    :func:`realization_length_m` long, named ``{name}{i:03d}-seed{seed}`` and seeded by
+    (seed, *key, i)."""
+    length = realization_length_m(runs, spec)
     return tuple(
         _synthetic_run(
             runs[0],
@@ -179,16 +210,20 @@ def _realizations(
     )
 
 
-def model_tracks(runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan) -> tuple[TrackRun, ...]:
+def model_tracks(
+    runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan, spec: RigSpec
+) -> tuple[TrackRun, ...]:
     """The μ synthetic track realizations the model simulates at every w (module docstring)."""
-    return _realizations(runs, plan, "model", (MODEL_TRACKS_TAG,), plan.n_simulated)
+    return _realizations(runs, plan, spec, "model", (MODEL_TRACKS_TAG,), plan.n_simulated)
 
 
 def pilot_tracks(
-    runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan, stage: int
+    runs: Sequence[MeasuredRun], plan: TrackStatisticsPlan, spec: RigSpec, stage: int
 ) -> tuple[TrackRun, ...]:
     """The M fresh realizations of one pilot stage (0 or 1)."""
-    return _realizations(runs, plan, f"pilot{stage}-", (PILOT_TRACKS_TAG, stage), plan.pilot_runs)
+    return _realizations(
+        runs, plan, spec, f"pilot{stage}-", (PILOT_TRACKS_TAG, stage), plan.pilot_runs
+    )
 
 
 def _noise_seed(plan: TrackStatisticsPlan, stage: int, m: int) -> int:
@@ -210,7 +245,8 @@ def run_pilot(
 
     Args:
         plan: what the study's ``[output_error]`` asked for.
-        runs: the ν measured runs (speed, design and length of the realizations).
+        runs: the ν measured runs (speed and design of the realizations, and with the
+            rig their length, :func:`realization_length_m`).
         measured: (ν x C x F) their spectra.
         bounds: (2 x q) C_w.
         evaluator: the study's evaluator on the μ model tracks (its store and executor).
@@ -257,7 +293,7 @@ def run_pilot(
                     _noise_seed(plan, stage, m),
                 ),
             )
-            for m, track in enumerate(pilot_tracks(runs, plan, stage))
+            for m, track in enumerate(pilot_tracks(runs, plan, spec, stage))
         ]
         touched.update((np.asarray(w).tobytes(), track_id) for w, track_id, _ in items)
         found = evaluator.stored_runs(

@@ -17,8 +17,10 @@ import numpy as np
 from susp_bo.data.measured import (
     FORMAT_NAME,
     FORMAT_VERSION,
+    FORMAT_VERSION_WITHOUT_GEOMETRY,
     GEOMETRY_UNITS,
     READABLE_VERSIONS,
+    VERSIONS_REQUIRING_GEOMETRY,
     MeasuredDataError,
     MeasuredRun,
     nan_problems,
@@ -73,17 +75,21 @@ def _write_array(group: h5py.Group, name: str, values: np.ndarray, unit: str | N
 
 
 def write_run_file(run: MeasuredRun, path: Path) -> None:
-    """Write ``run`` to ``path`` (overwritten) in format version 2."""
+    """Write ``run`` to ``path`` (overwritten): format version 2 with its geometry, version 3
+    without a ``geometry/`` group when the run has none (module docstring of
+    :mod:`susp_bo.data.measured`)."""
     strings = h5py.string_dtype(encoding="utf-8")
+    version = FORMAT_VERSION if run.geometry is not None else FORMAT_VERSION_WITHOUT_GEOMETRY
     with h5py.File(path, "w", libver=("v110", "latest"), userblock_size=USERBLOCK_SIZE) as file:
         file.attrs["format"] = FORMAT_NAME
-        file.attrs["format_version"] = np.int64(FORMAT_VERSION)
+        file.attrs["format_version"] = np.int64(version)
         file.attrs["metadata_json"] = json.dumps(run.metadata, sort_keys=True)
         file.attrs["content_sha256"] = run.content_digest()
-        geometry = file.create_group("geometry")
-        geometry.attrs["spacing_m"] = np.float64(run.geometry.spacing_m)
-        for name in GEOMETRY_COMPONENTS:
-            _write_array(geometry, name, getattr(run.geometry, name), GEOMETRY_UNITS[name])
+        if run.geometry is not None:
+            geometry = file.create_group("geometry")
+            geometry.attrs["spacing_m"] = np.float64(run.geometry.spacing_m)
+            for name in GEOMETRY_COMPONENTS:
+                _write_array(geometry, name, getattr(run.geometry, name), GEOMETRY_UNITS[name])
         if run.design is not None:
             design = file.create_group("design")
             for name in ("chainage_m", *DESIGN_COMPONENTS):
@@ -184,6 +190,32 @@ class _Reader:
         return tuple(str(s) for s in dataset.asstr()[()])
 
 
+def _read_geometry(reader: _Reader, version: int) -> dict[str, Any] | None:
+    """The ``geometry/`` group's fields (spacing_m and the components), or None for a
+    version-3 file without it (the track not measured).
+
+    Raises:
+        MeasuredDataError: ``geometry/`` missing from a version-1 or -2 file, naming the
+            versions that may omit it; or present but malformed (as in version 2).
+    """
+    if "geometry" not in reader.file and version not in VERSIONS_REQUIRING_GEOMETRY:
+        return None
+    if "geometry" not in reader.file:
+        raise reader.fail(
+            f"missing group /geometry: format_version {version} requires it (a run whose "
+            f"track was not measured is written as format_version "
+            f"{FORMAT_VERSION_WITHOUT_GEOMETRY}, without /geometry)"
+        )
+    group = reader.group("geometry")
+    return {
+        "spacing_m": reader.real(group, "spacing_m", "m"),
+        **{
+            name: reader.numbers(group, name, 1, GEOMETRY_UNITS[name])
+            for name in GEOMETRY_COMPONENTS
+        },
+    }
+
+
 def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
     reader = _Reader(file, where)
     name = reader.text(file, "format") if "format" in file.attrs else None
@@ -208,12 +240,7 @@ def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
     if not isinstance(metadata, dict):
         raise reader.fail(f"metadata_json must hold a JSON object, found {type(metadata).__name__}")
 
-    geometry_group = reader.group("geometry")
-    spacing = reader.real(geometry_group, "spacing_m", "m")
-    components = {
-        component: reader.numbers(geometry_group, component, 1, GEOMETRY_UNITS[component])
-        for component in GEOMETRY_COMPONENTS
-    }
+    geometry = _read_geometry(reader, version)
     design = None
     if "design" in file:
         if version < 2:
@@ -245,7 +272,7 @@ def _read(file: h5py.File, where: str, allow_nan: bool) -> MeasuredRun:
         )
     try:
         run = MeasuredRun(
-            geometry=TrackGeometry(spacing_m=spacing, **components),
+            geometry=None if geometry is None else TrackGeometry(**geometry),
             speed=SpeedProfile(time_s=time, speed_m_s=speed_values),
             channels=channels,
             accelerations_m_s2=data,

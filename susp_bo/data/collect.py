@@ -4,9 +4,12 @@ Used by ``susp-bo import``. Naming of the inputs:
 
 - ``mat``: every ``*.mat`` file is one run, named after the file (``run7.mat`` → ``run7``).
 - ``csv``: a run is a set of files sharing a prefix: ``<run>_accelerations.csv``
-  (required), ``<run>_geometry.csv`` (required) and ``<run>_speed.csv`` (optional; without
-  it the speed is ``speed_m_s`` (a constant, m/s) or the accelerations file's
-  ``speed_m_s`` column). Column layouts: :mod:`susp_bo.data.importers`.
+  (required), ``<run>_geometry.csv`` (required; without the irregularity columns when the
+  track under the run was not measured: ``s_m`` alone, or with the design columns) and
+  ``<run>_speed.csv`` (optional; without it the speed is ``speed_m_s`` (a constant, m/s)
+  or the accelerations file's ``speed_m_s`` column). Column layouts:
+  :mod:`susp_bo.data.importers`. The geometry file stays required, so that a forgotten
+  file is named rather than imported as a run without geometry.
 
 A folder stands for the files in it (not its sub-folders). Every problem raises
 :class:`~susp_bo.data.measured.MeasuredDataError` naming the file and what is expected.

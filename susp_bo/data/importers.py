@@ -8,13 +8,16 @@ empty cells read as NaN):
   ``<channel>`` or ``<channel> [<unit>]`` (unit default ``m/s^2``; ``g``,
   ``mm/s^2``, ``cm/s^2`` are recognised, see :meth:`MeasuredRun.to_si`).
   An optional column ``speed_m_s`` holds the speed record at the same times.
-* geometry file: columns ``s_m, vertical_m, alignment_m, cross_level_rad,
-  gauge_m`` (any order), ``s_m`` uniformly spaced, and optionally the line's
-  design on the same rows: ``curvature_1_m`` (1/m, + left-hand curve),
-  ``cant_m`` (m, signed cross-level, + left rail higher) and ``gradient``
-  (rise/run) — all three or none (see :mod:`susp_bo.rig.design`). The first
-  row is the track origin (s = 0); its original chainage is kept in the
-  metadata as ``geometry_start_m``.
+* geometry file: column ``s_m`` (uniformly spaced), the irregularities
+  ``vertical_m, alignment_m, cross_level_rad, gauge_m`` — all four or none: without
+  them the track under the run was not measured (:attr:`MeasuredRun.geometry` None) —
+  and optionally the line's design on the same rows: ``curvature_1_m`` (1/m,
+  + left-hand curve), ``cant_m`` (m, signed cross-level, + left rail higher) and
+  ``gradient`` (rise/run) — all three or none (see :mod:`susp_bo.rig.design`); any
+  order. The first row is the track origin (s = 0); its original chainage is kept in
+  the metadata as ``geometry_start_m``. From Python, ``geometry_csv=None`` reads a run
+  without geometry or design (``susp-bo import csv`` asks for the file, which may then
+  hold ``s_m`` alone).
 * speed: a constant in m/s, or a CSV with columns ``time_s, speed_m_s``, or
   (``speed=None``) the ``speed_m_s`` column of the accelerations file.
 
@@ -26,11 +29,11 @@ MATLAB layout (``scipy.io.loadmat``; v4–v7 files; v7.3 files are HDF5 and are
 refused with a hint): variables ``accelerations`` (n_t x C, or C x n_t when
 unambiguous), ``channels`` (cell array of char), ``units`` (optional cell
 array, default m/s^2), ``sample_rate_hz``, ``time_offset_s`` (optional),
-``spacing_m``, ``vertical_m``, ``alignment_m``, ``cross_level_rad``,
-``gauge_m``, ``speed_m_s`` (scalar = constant, or vector with ``speed_time_s``),
-``metadata_json`` (optional char), and optionally the design: ``design_chainage_m``
-(on the geometry's s axis), ``design_curvature_1_m``, ``design_cant_m``,
-``design_gradient`` (all four or none).
+the geometry ``spacing_m``, ``vertical_m``, ``alignment_m``, ``cross_level_rad``,
+``gauge_m`` (all five, or none when the track was not measured), ``speed_m_s``
+(scalar = constant, or vector with ``speed_time_s``), ``metadata_json`` (optional
+char), and optionally the design: ``design_chainage_m`` (on the track's s axis),
+``design_curvature_1_m``, ``design_cant_m``, ``design_gradient`` (all four or none).
 
 Every problem raises :class:`~susp_bo.data.measured.MeasuredDataError` naming
 the file, the column or variable and the expectation.
@@ -43,6 +46,7 @@ both share, :mod:`susp_bo.data.importer_checks`.
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 from typing import Any
 
@@ -58,10 +62,13 @@ from susp_bo.data.measured import (
     MeasuredDataError,
     MeasuredRun,
 )
-from susp_bo.rig.design import DESIGN_COMPONENTS
-from susp_bo.rig.track import GEOMETRY_COMPONENTS
+from susp_bo.rig.design import DESIGN_COMPONENTS, TrackDesign
+from susp_bo.rig.track import GEOMETRY_COMPONENTS, TrackGeometry
 
 _GEOMETRY_COLUMNS = ("s_m", *GEOMETRY_COMPONENTS)
+EXPORT_SPACING_M = 0.25
+"""Row spacing (m), at most, of the ``s_m`` column :func:`write_csv_run` writes for a run
+without geometry (its design sampled on those rows)."""
 
 
 def csv_columns(path: PathLike) -> list[str]:
@@ -148,9 +155,54 @@ def _split_unit(column: str) -> tuple[str, str]:
     return column, SI_ACCELERATION
 
 
+def _track(
+    path: Path,
+) -> tuple[TrackGeometry | None, TrackDesign | None, float]:
+    """The geometry file's irregularities (None without their columns), design (None
+    without its columns) and the chainage of its first row (m).
+
+    Raises:
+        MeasuredDataError: columns other than ``s_m`` + all or none of the irregularities +
+            all or none of the design columns, naming the missing and unknown ones; bad
+            values, naming the file.
+    """
+    header, table = _read_table(path)
+    irregularities = set(header) & set(GEOMETRY_COMPONENTS)
+    designed = set(header) & set(DESIGN_COMPONENTS)
+    expected = (
+        ("s_m",)
+        + (GEOMETRY_COMPONENTS if irregularities else ())
+        + (DESIGN_COMPONENTS if designed else ())
+    )
+    if sorted(header) != sorted(expected):
+        raise MeasuredDataError(
+            f"{path}: columns must be 's_m', all of {list(GEOMETRY_COMPONENTS)} (or none of "
+            f"them: the track not measured) and optionally all of {list(DESIGN_COMPONENTS)}; "
+            f"missing {sorted(set(expected) - set(header))}, unknown "
+            f"{sorted(set(header) - set(expected))}"
+        )
+    s = table[:, header.index("s_m")]
+    spacing = _uniform_step(path, "s_m", s)
+    geometry = None
+    if irregularities:
+        geometry = _geometry(
+            path,
+            spacing_m=spacing,
+            **{name: table[:, header.index(name)] for name in GEOMETRY_COMPONENTS},
+        )
+    design = None
+    if designed:
+        design = _design(
+            path,
+            chainage_m=s - s[0],
+            **{name: table[:, header.index(name)] for name in DESIGN_COMPONENTS},
+        )
+    return geometry, design, float(s[0])
+
+
 def read_csv_run(
     accelerations_csv: PathLike,
-    geometry_csv: PathLike,
+    geometry_csv: PathLike | None,
     speed: float | PathLike | None = None,
     *,
     metadata: dict[str, Any] | None = None,
@@ -160,7 +212,9 @@ def read_csv_run(
 
     Args:
         accelerations_csv: ``time_s`` + channel columns (+ optional ``speed_m_s``).
-        geometry_csv: ``s_m`` + the four geometry columns.
+        geometry_csv: ``s_m`` + the four geometry columns (or none of them: the track not
+            measured) + optionally the three design columns; None: a run without geometry
+            or design.
         speed: constant speed (m/s), a speed CSV, or None for the ``speed_m_s`` column.
         metadata: stored with the run (``geometry_start_m`` and ``source`` are added).
         allow_nan: keep empty / NaN acceleration cells instead of refusing the file.
@@ -168,7 +222,8 @@ def read_csv_run(
     Raises:
         MeasuredDataError: naming the file, line or column.
     """
-    acc_path, geo_path = Path(accelerations_csv), Path(geometry_csv)
+    acc_path = Path(accelerations_csv)
+    geo_path = None if geometry_csv is None else Path(geometry_csv)
     header, table = _read_table(acc_path)
     if header[0] != "time_s":
         raise MeasuredDataError(f"{acc_path}: the first column must be 'time_s'; got {header[0]!r}")
@@ -210,30 +265,10 @@ def read_csv_run(
             f"({clock:g} s)"
         )
 
-    geo_header, geo_table = _read_table(geo_path)
-    design_columns = set(geo_header) & set(DESIGN_COMPONENTS)
-    expected = _GEOMETRY_COLUMNS + (DESIGN_COMPONENTS if design_columns else ())
-    if sorted(geo_header) != sorted(expected):
-        raise MeasuredDataError(
-            f"{geo_path}: columns must be {list(_GEOMETRY_COLUMNS)} (+ optionally all of "
-            f"{list(DESIGN_COMPONENTS)}); missing {sorted(set(expected) - set(geo_header))}, "
-            f"unknown {sorted(set(geo_header) - set(expected))}"
-        )
-    s = geo_table[:, geo_header.index("s_m")]
-    spacing = _uniform_step(geo_path, "s_m", s)
-    geometry = _geometry(
-        geo_path,
-        spacing_m=spacing,
-        **{name: geo_table[:, geo_header.index(name)] for name in GEOMETRY_COMPONENTS},
-    )
-    design = None
-    if design_columns:
-        design = _design(
-            geo_path,
-            chainage_m=s - s[0],
-            **{name: geo_table[:, geo_header.index(name)] for name in DESIGN_COMPONENTS},
-        )
-    info = {"source": f"csv:{acc_path.name}", **(metadata or {}), "geometry_start_m": float(s[0])}
+    geometry, design, start_m = (None, None, None) if geo_path is None else _track(geo_path)
+    info = {"source": f"csv:{acc_path.name}", **(metadata or {})}
+    if start_m is not None:
+        info["geometry_start_m"] = start_m
     run = _build(
         acc_path,
         geometry=geometry,
@@ -255,16 +290,27 @@ def write_csv_run(
     """Export ``run`` to the CSV layout (times on the speed clock; full float precision).
 
     A design is written as its values at the geometry's samples (its knots in between
-    are not kept: a design record sampled like the geometry).
+    are not kept: a design record sampled like the geometry). A run without geometry
+    gets a geometry file without the irregularity columns: ``s_m`` in equal steps of at
+    most :data:`EXPORT_SPACING_M` over its design (or, without one, over the distance of
+    its speed record), with the design's values on those rows.
     """
     header = ["time_s", *(f"{c} [{u}]" for c, u in zip(run.channels, run.units))]
     columns = [run.time_s, *run.accelerations_m_s2]
     _write_table(Path(accelerations_csv), header, np.column_stack(columns))
-    geometry = run.geometry
-    names = list(_GEOMETRY_COLUMNS)
-    table = [geometry.position_m, *geometry.stacked()]
+    if run.geometry is not None:
+        names = list(_GEOMETRY_COLUMNS)
+        table = [run.geometry.position_m, *run.geometry.stacked()]
+    else:
+        end = (
+            run.design.end_m
+            if run.design is not None
+            else run.speed.distance_m(run.speed.duration_s)
+        )
+        rows = max(2, math.ceil(float(end) / EXPORT_SPACING_M - 1e-9) + 1)
+        names, table = ["s_m"], [np.linspace(0.0, float(end), rows)]
     if run.design is not None:
-        s = geometry.position_m
+        s = table[0]
         names += list(DESIGN_COMPONENTS)
         table += [run.design.curvature(s), run.design.cant(s), run.design.grade(s)[0]]
     _write_table(Path(geometry_csv), names, np.column_stack(table))

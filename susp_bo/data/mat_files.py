@@ -1,7 +1,8 @@
 """Measured runs in MATLAB ``.mat`` files: :func:`read_mat_run` and :func:`write_mat_run`.
 
-The variables (``accelerations`` n_t x C, ``channels``, the geometry and speed, the
-optional design, ``metadata_json``) are laid out in :mod:`susp_bo.data.importers`,
+The variables (``accelerations`` n_t x C, ``channels``, the speed, the geometry — all of
+its variables, or none when the track was not measured —, the optional design,
+``metadata_json``) are laid out in :mod:`susp_bo.data.importers`,
 with the CSV layout; v4–v7 files are read with ``scipy.io.loadmat``, v7.3 (HDF5) files
 are refused with a hint. Every problem raises
 :class:`~susp_bo.data.measured.MeasuredDataError` naming the file and the variable.
@@ -23,6 +24,8 @@ from susp_bo.data.measured import SI_ACCELERATION, MeasuredDataError, MeasuredRu
 from susp_bo.rig.design import DESIGN_COMPONENTS
 from susp_bo.rig.track import GEOMETRY_COMPONENTS
 
+_GEOMETRY_VARIABLES = ("spacing_m", *GEOMETRY_COMPONENTS)
+"""The geometry's variables: all of them, or none when the track was not measured."""
 _DESIGN_VARIABLES = tuple(f"design_{name}" for name in ("chainage_m", *DESIGN_COMPONENTS))
 _MAT_READ_ERRORS: tuple[type[Exception], ...] = (
     scipy.io.matlab.MatReadError,  # e.g. "Mat file appears to be truncated" (empty, short)
@@ -138,11 +141,21 @@ def read_mat_run(
         profile = _speed(mat_path, np.array([0.0, max(end, 1e-9)]), np.repeat(speed, 2))
     else:
         profile = _speed(mat_path, _mat_vector(mat_path, variables, "speed_time_s"), speed)
-    geometry = _geometry(
-        mat_path,
-        spacing_m=_mat_number(mat_path, variables, "spacing_m"),
-        **{name: _mat_vector(mat_path, variables, name) for name in GEOMETRY_COMPONENTS},
-    )
+    geometry = None
+    given = [name for name in _GEOMETRY_VARIABLES if name in variables]
+    if given and len(given) != len(_GEOMETRY_VARIABLES):
+        raise MeasuredDataError(
+            f"{mat_path}: geometry variables must come together: found {given}, missing "
+            f"{[name for name in _GEOMETRY_VARIABLES if name not in variables]}; give all "
+            f"of {list(_GEOMETRY_VARIABLES)}, or none of them when the track under the run "
+            "was not measured"
+        )
+    if given:
+        geometry = _geometry(
+            mat_path,
+            spacing_m=_mat_number(mat_path, variables, "spacing_m"),
+            **{name: _mat_vector(mat_path, variables, name) for name in GEOMETRY_COMPONENTS},
+        )
     stored: dict[str, Any] = {}
     if "metadata_json" in variables:
         try:
@@ -182,20 +195,22 @@ def read_mat_run(
 
 
 def write_mat_run(run: MeasuredRun, path: PathLike) -> None:
-    """Export ``run`` to a MATLAB v5 ``.mat`` file in the documented layout."""
+    """Export ``run`` to a MATLAB v5 ``.mat`` file in the documented layout (without the
+    geometry's variables when the run has no geometry)."""
     variables: dict[str, Any] = {
         "accelerations": run.accelerations_m_s2.T,
         "channels": np.array(run.channels, dtype=object),
         "units": np.array(run.units, dtype=object),
         "sample_rate_hz": run.sample_rate_hz,
         "time_offset_s": run.time_offset_s,
-        "spacing_m": run.geometry.spacing_m,
         "speed_time_s": run.speed.time_s,
         "speed_m_s": run.speed.speed_m_s,
         "metadata_json": json.dumps(run.metadata, sort_keys=True),
     }
-    for name in GEOMETRY_COMPONENTS:
-        variables[name] = getattr(run.geometry, name)
+    if run.geometry is not None:  # none of the geometry's variables without it
+        variables["spacing_m"] = run.geometry.spacing_m
+        for name in GEOMETRY_COMPONENTS:
+            variables[name] = getattr(run.geometry, name)
     if run.design is not None:
         for name in _DESIGN_VARIABLES:
             variables[name] = getattr(run.design, name.removeprefix("design_"))

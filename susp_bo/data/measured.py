@@ -2,26 +2,30 @@
 
 A measured run is what the paper calls one realization ``y_exp,i`` together
 with the excitation ``x_exp,i`` recorded with it: the track geometry sampled in
-space, the speed record, and the accelerations of every sensor channel.
+space (when the track under the run was measured; None when it was not), the speed
+record, and the accelerations of every sensor channel.
 
-HDF5 format, version 2 (one run per file, extension ``.h5`` or ``.hdf5``)
-------------------------------------------------------------------------
+HDF5 format, versions 2 and 3 (one run per file, extension ``.h5`` or ``.hdf5``)
+---------------------------------------------------------------------------------
 
-All numbers are float64, SI units. Every numeric dataset carries a ``units``
-attribute (checked on load)::
+All numbers are float64, SI units. Every numeric dataset carries a ``units`` attribute
+(checked on load)::
 
     /                                   attrs: format = "susp_bo.measured_run"
-    │                                          format_version = 2 (1 is still read)
+    │                                          format_version = 2, or 3 without geometry/
+    │                                                           (1 is still read)
     │                                          metadata_json = JSON object (str)
     │                                          content_sha256 = hex digest (optional)
-    ├── geometry/                       attrs: spacing_m (> 0, m)
+    ├── geometry/            (required in versions 1 and 2; optional in version 3:
+    │   │                     absent = the track under the run was not measured)
+    │   │                               attrs: spacing_m (> 0, m)
     │   ├── vertical_m       (N,)  "m"    mean of the two rails, + up
     │   ├── alignment_m      (N,)  "m"    mean lateral rail position, + left
     │   ├── cross_level_rad  (N,)  "rad"  roll of the rail plane, + left rail higher
     │   └── gauge_m          (N,)  "m"    gauge deviation from nominal, + wider
     │                                     sampled at s = 0, ds, 2 ds, …  (N >= 2)
-    ├── design/              (optional, version 2; absent on tangent track or unknown)
-    │   ├── chainage_m       (K,)  "m"    knots on the geometry's s axis, non-decreasing
+    ├── design/              (optional, version >= 2; absent on tangent track or unknown)
+    │   ├── chainage_m       (K,)  "m"    knots on the track's s axis, non-decreasing
     │   ├── curvature_1_m    (K,)  "1/m"  + left-hand curve, |κ| <= 1/150 m
     │   ├── cant_m           (K,)  "m"    signed cross-level, + left rail higher, <= 0.18 m
     │   └── gradient         (K,)  "1"    rise/run, + uphill, <= 0.040
@@ -47,6 +51,16 @@ follows the curves, and the design's quasi-static specific force is removed
 from the accelerations before the spectra (see :mod:`susp_bo.rig.curving`).
 Version 1 files (no ``design/`` group) load unchanged; a ``design/`` group in a
 file labelled version 1 is refused.
+
+Versions: :func:`save_run` writes a run with geometry as version 2, byte for byte as
+before version 3 existed, and a run without geometry (:attr:`MeasuredRun.geometry` None:
+the track under the run was not measured, e.g. for ``[output_error] model =
+"track_statistics"``) as version 3 without ``geometry/``, so that a reader that knows
+only versions 1 and 2 refuses it by its version instead of reporting a missing group. A
+file labelled version 1 or 2 without ``geometry/`` is refused (missing group /geometry);
+a version-3 file may hold ``geometry/``, read as in version 2. A ``geometry/`` group
+that is present is checked exactly as in version 2 whatever the version.
+
 ``content_sha256`` is the SHA-256 of the run's canonical content (written by
 :func:`save_run`; verified on load when present, so files written by other tools
 may omit it).
@@ -98,7 +112,12 @@ FloatArray = NDArray[np.float64]
 
 FORMAT_NAME = "susp_bo.measured_run"
 FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+"""Version written for a run with geometry (byte-compatible with what version-2 readers read)."""
+FORMAT_VERSION_WITHOUT_GEOMETRY = 3
+"""Version written for a run without geometry (no ``geometry/`` group)."""
+READABLE_VERSIONS = (1, 2, 3)
+VERSIONS_REQUIRING_GEOMETRY = (1, 2)
+"""Versions whose files must hold ``geometry/``."""
 SI_ACCELERATION = "m/s^2"
 GEOMETRY_UNITS = {
     "vertical_m": "m",
@@ -150,7 +169,11 @@ class MeasuredRun:
     """One measured (or synthetic) run: geometry, speed and accelerations.
 
     Args:
-        geometry: track geometry under the run, sampled in space.
+        geometry: track geometry under the run, sampled in space (irregularities in m and
+            rad on ``s = 0, ds, …``, see :class:`~susp_bo.rig.track.TrackGeometry`); None
+            when the track under the run was not measured: such a run can be calibrated
+            only with ``[output_error] model = "track_statistics"``, which simulates
+            synthetic tracks (every model that simulates the run's own track refuses it).
         speed: speed record (its clock starts at 0 s).
         channels: sensor names (C,), unique.
         accelerations_m_s2: accelerations (C x n_t), in ``units`` (m/s² for a
@@ -159,11 +182,11 @@ class MeasuredRun:
         units: unit of each channel (C,), canonical spelling applied (``"m/s^2"``).
         metadata: JSON-compatible information; stored as its JSON round trip.
         time_offset_s: time of the first acceleration sample on the speed clock (s), >= 0.
-        design: the line's design on the geometry's chainage (curves, cant, gradient);
-            None for tangent track or when unknown.
+        design: the line's design on the track's chainage ``s`` (curves, cant, gradient);
+            None for tangent track or when unknown. It may be given without a geometry.
     """
 
-    geometry: TrackGeometry
+    geometry: TrackGeometry | None
     speed: SpeedProfile
     channels: tuple[str, ...]
     accelerations_m_s2: FloatArray
@@ -179,9 +202,9 @@ class MeasuredRun:
                 f"MeasuredRun.design: expected a TrackDesign or None, got "
                 f"{type(self.design).__name__}"
             )
-        if not isinstance(self.geometry, TrackGeometry):
+        if self.geometry is not None and not isinstance(self.geometry, TrackGeometry):
             raise MeasuredDataError(
-                "MeasuredRun.geometry: expected a TrackGeometry, got "
+                "MeasuredRun.geometry: expected a TrackGeometry or None (track not measured), got "
                 f"{type(self.geometry).__name__}"
             )
         if not isinstance(self.speed, SpeedProfile):
@@ -324,12 +347,20 @@ class MeasuredRun:
             raise MeasuredDataError(str(error)) from None
 
     def content_digest(self) -> str:
-        """SHA-256 (hex) of the canonical content: arrays, names, units, rates, metadata."""
+        """SHA-256 (hex) of the canonical content: arrays, names, units, rates, metadata.
+
+        A run with geometry keeps the digest it has always had (versions 1 and 2); a run
+        without one hashes another leading tag, so the same run with and without its
+        geometry never share a digest.
+        """
         digest = hashlib.sha256()
-        digest.update(f"{FORMAT_NAME}/1".encode())  # version-1 runs keep their digest
-        digest.update(np.float64(self.geometry.spacing_m).tobytes())
-        for name in GEOMETRY_COMPONENTS:
-            digest.update(np.ascontiguousarray(getattr(self.geometry, name)).tobytes())
+        if self.geometry is None:
+            digest.update(f"{FORMAT_NAME}/{FORMAT_VERSION_WITHOUT_GEOMETRY}:no-geometry".encode())
+        else:
+            digest.update(f"{FORMAT_NAME}/1".encode())  # version-1 runs keep their digest
+            digest.update(np.float64(self.geometry.spacing_m).tobytes())
+            for name in GEOMETRY_COMPONENTS:
+                digest.update(np.ascontiguousarray(getattr(self.geometry, name)).tobytes())
         for array in (self.speed.time_s, self.speed.speed_m_s, self.accelerations_m_s2):
             digest.update(str(array.shape).encode())
             digest.update(np.ascontiguousarray(array).tobytes())

@@ -4,8 +4,10 @@ Checks (each problem named, with the numbers): the rig's channels are present, i
 m/s², without NaN runs; the sampling rate and the record length suit the rig's band
 and Welch segment; the speed record covers the accelerations; the track geometry (and
 the design, when the run has one) covers the distance travelled plus the axle span; the
-irregularities are in metres (:func:`irregularity_problems`). Run before any simulation
-by the study (:mod:`susp_bo.calibration.study_preparation`) and by ``susp-bo import``.
+irregularities are in metres (:func:`irregularity_problems`). A run without geometry
+(its track not measured) skips the two geometry checks; the rest stay. Run before any
+simulation by the study (:mod:`susp_bo.calibration.study_preparation`) and by
+``susp-bo import``.
 """
 
 from __future__ import annotations
@@ -53,6 +55,18 @@ def irregularity_problems(geometry: TrackGeometry) -> list[str]:
     return problems
 
 
+def record_end_s(run: MeasuredRun) -> float:
+    """Time of the last acceleration sample on the speed record's clock (s)."""
+    return run.time_offset_s + (run.n_samples - 1) / run.sample_rate_hz
+
+
+def track_needed_m(run: MeasuredRun, axle_span_m: float) -> float:
+    """Track length (m) the run needs: the distance travelled up to its last acceleration
+    sample plus the axle span (the leading axle is ``axle_span_m`` ahead of ``s = 0`` at
+    ``t = 0``). The speed record must cover that sample (:func:`validate_run` says so)."""
+    return float(run.speed.distance_m(record_end_s(run))) + float(axle_span_m)
+
+
 def validate_run(
     run: MeasuredRun,
     channels: Sequence[str] | None = None,
@@ -67,7 +81,10 @@ def validate_run(
     no NaN runs; the sampling rate exceeds twice ``settings.f_max_hz`` and the
     record holds one Welch segment; the speed record covers the acceleration
     record; the track (and the design, when the run has one) covers the distance
-    travelled plus the axle span.
+    travelled plus the axle span (:func:`track_needed_m`); the irregularities are in
+    metres. A run without geometry (``run.geometry`` None: its track not measured) skips
+    the irregularity and track-length checks; the design, when given, must still cover
+    ``0 … track_needed_m``.
 
     Args:
         run: the run.
@@ -86,22 +103,23 @@ def validate_run(
     if missing:
         problems.append(f"missing channel(s) {missing}; the run has {list(run.channels)}")
     problems += unit_problems(run, wanted) + nan_problems(run, wanted)
-    problems += irregularity_problems(run.geometry)
+    if run.geometry is not None:
+        problems += irregularity_problems(run.geometry)
     if settings is not None:
         try:
             settings.check_sample_rate(run.sample_rate_hz, run.duration_s)
         except ValueError as error:
             problems.append(f"sampling rate or record too short for the band: {error}")
     span = real_number("axle_span_m", axle_span_m, "m")
-    end_s = run.time_offset_s + (run.n_samples - 1) / run.sample_rate_hz
+    end_s = record_end_s(run)
     if end_s > run.speed.duration_s * (1 + 1e-9):
         problems.append(
             f"speed record too short: it covers 0 … {run.speed.duration_s:g} s but the "
             f"accelerations run to t = {end_s:g} s"
         )
     else:
-        needed = float(run.speed.distance_m(end_s)) + span
-        if needed > run.geometry.length_m * (1 + 1e-9):
+        needed = track_needed_m(run, span)
+        if run.geometry is not None and needed > run.geometry.length_m * (1 + 1e-9):
             problems.append(
                 f"track shorter than the run: the geometry covers {run.geometry.length_m:g} m "
                 f"but the run travels {needed - span:g} m (+ axle span {span:g} m) = {needed:g} m"

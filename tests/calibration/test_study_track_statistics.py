@@ -3,6 +3,7 @@ simulation)."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,16 +17,23 @@ from susp_bo.calibration.study_track_statistics import (
     pilot_point,
     pilot_tracks,
     plan_for,
+    realization_length_m,
 )
 from susp_bo.data.synthetic import synthesize_runs
-from susp_bo.rig.spec import load_rig_spec
+from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.track import TrackGeometry
 
 
 @pytest.fixture(scope="module")
-def runs(fast_rig: Path) -> list:
+def spec(fast_rig: Path) -> RigSpec:
+    """The fast rig."""
+    return load_rig_spec(fast_rig)
+
+
+@pytest.fixture(scope="module")
+def runs(spec: RigSpec) -> list:
     """Two runs of one experiment (speed, record, no design) on their own tracks."""
-    return synthesize_runs(load_rig_spec(fast_rig), nu=2, seed=3)
+    return synthesize_runs(spec, nu=2, seed=3)
 
 
 def test_the_plan_takes_the_defaults_and_refuses_a_pilot_too_small_for_q() -> None:
@@ -60,10 +68,10 @@ def test_runs_of_another_speed_or_record_are_refused_naming_the_run(
 
 
 def test_model_and_pilot_tracks_are_seeded_realizations_under_the_runs_speed_and_length(
-    runs: list,
+    runs: list, spec: RigSpec
 ) -> None:
     plan = plan_for(50, q=2, n_measured=2, seed=11, track_quality="low")
-    tracks = model_tracks(runs, plan)
+    tracks = model_tracks(runs, plan, spec)
     assert [t.track_id for t in tracks] == [f"model{j:03d}-seed11" for j in range(2)]
     for j, track in enumerate(tracks):
         template = runs[j]
@@ -72,25 +80,25 @@ def test_model_and_pilot_tracks_are_seeded_realizations_under_the_runs_speed_and
         assert not np.array_equal(
             track.geometry.vertical_m[:100], template.geometry.vertical_m[:100]
         )
-    again = model_tracks(runs, plan)  # deterministic: a resume finds the same tracks
+    again = model_tracks(runs, plan, spec)  # deterministic: a resume finds the same tracks
     assert all(
         np.array_equal(a.geometry.vertical_m, b.geometry.vertical_m) for a, b in zip(tracks, again)
     )
-    stage0, stage1 = pilot_tracks(runs, plan, 0), pilot_tracks(runs, plan, 1)
+    stage0, stage1 = pilot_tracks(runs, plan, spec, 0), pilot_tracks(runs, plan, spec, 1)
     assert len(stage0) == len(stage1) == 50
     ids = {t.track_id for t in (*tracks, *stage0, *stage1)}
     assert len(ids) == 2 + 100  # every realization its own key in the store
     verticals = [t.geometry.vertical_m[:200] for t in (*tracks, *stage0[:5], *stage1[:5])]
     assert len({v.tobytes() for v in verticals}) == len(verticals)  # all different draws
     # another seed, other realizations
-    other = model_tracks(runs, plan_for(50, 2, 2, 12, "low"))
+    other = model_tracks(runs, plan_for(50, 2, 2, 12, "low"), spec)
     assert not np.array_equal(other[0].geometry.vertical_m, tracks[0].geometry.vertical_m)
 
 
-def test_the_realizations_follow_the_rigs_track_psd(runs: list) -> None:
+def test_the_realizations_follow_the_rigs_track_psd(runs: list, spec: RigSpec) -> None:
     """The pilot's tracks are draws of the PSD the plan names: their rms matches a direct draw."""
-    low = pilot_tracks(runs, plan_for(50, 1, 2, 0, "low"), 0)
-    high = pilot_tracks(runs, plan_for(50, 1, 2, 0, "high"), 0)
+    low = pilot_tracks(runs, plan_for(50, 1, 2, 0, "low"), spec, 0)
+    high = pilot_tracks(runs, plan_for(50, 1, 2, 0, "high"), spec, 0)
     rms_low = np.sqrt(np.mean([np.mean(t.geometry.vertical_m**2) for t in low]))
     rms_high = np.sqrt(np.mean([np.mean(t.geometry.vertical_m**2) for t in high]))
     reference = np.sqrt(
@@ -106,3 +114,26 @@ def test_the_realizations_follow_the_rigs_track_psd(runs: list) -> None:
     )
     assert rms_low == pytest.approx(reference, rel=0.25)
     assert rms_high > 1.25 * rms_low  # "high" is the PSD of high disturbance
+
+
+def test_the_realizations_are_as_long_as_the_runs_need_with_or_without_geometry(
+    runs: list, spec: RigSpec
+) -> None:
+    """One rule from the speed record and the axle span, never from a geometry: the same
+    runs without geometry get the same tracks, bit for bit; for synthetic runs these are the
+    tracks the longest geometry gave before (780.0 m on the fast rig, 3121 samples)."""
+    assert realization_length_m(runs, spec) == pytest.approx(83.33 * 9.0 + 20.0 + 10.0)
+    bare = [dataclasses.replace(run, geometry=None) for run in runs]
+    check_exchangeable_runs(bare, ["a.h5", "b.h5"])
+    check_exchangeable_runs([runs[0], bare[1]], ["a.h5", "b.h5"])  # a mixed folder
+    plan = plan_for(50, q=2, n_measured=2, seed=11, track_quality="low")
+    for make in (
+        lambda r: model_tracks(r, plan, spec),
+        lambda r: pilot_tracks(r, plan, spec, 1)[:3],
+    ):
+        with_geometry, without = make(runs), make(bare)
+        assert [t.track_id for t in with_geometry] == [t.track_id for t in without]
+        for a, b in zip(with_geometry, without):
+            np.testing.assert_array_equal(a.geometry.stacked(), b.geometry.stacked())
+            assert a.geometry.spacing_m == b.geometry.spacing_m == 0.25
+            assert a.geometry.length_m == runs[0].geometry.length_m == 780.0

@@ -66,7 +66,10 @@ def test_run_properties_and_canonical_units(small_run: MeasuredRun) -> None:
         ({"time_offset_s": -1.0}, r"time_offset_s: got -1.0 s; must be >= 0"),
         ({"units": ("m/s^2",)}, r"units: need one string per channel \(2\)"),
         ({"metadata": {"f": object()}}, r"metadata: must be JSON-compatible"),
-        ({"geometry": None}, r"geometry: expected a TrackGeometry, got NoneType"),
+        (  # None is a run whose track was not measured (test_untracked_runs.py)
+            {"geometry": np.zeros(3)},
+            r"geometry: expected a TrackGeometry or None \(track not measured\), got ndarray",
+        ),
         ({"speed": 83.0}, r"speed: expected a SpeedProfile, got float"),
     ],
 )

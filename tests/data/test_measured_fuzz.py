@@ -161,8 +161,8 @@ def _mutations(draw: st.DataObject) -> tuple[str, Callable[[h5py.File], None]]:
             value = -0.5  # 0 and 2 are valid offsets
         if name == "metadata_json" and isinstance(value, str):
             value = draw.draw(st.sampled_from(["[1, 2]", "{not json", "5"]))
-        if name == "format_version" and plain_number and value in (1, 2):
-            value = 3  # 1 and 2 are both readable versions
+        if name == "format_version" and plain_number and value in (1, 2, 3):
+            value = 4  # 1, 2 and 3 are readable versions (3 may hold /geometry)
         return f"attribute {target}:{name} = {value!r}", lambda f: f[target].attrs.__setitem__(
             name, value
         )
