@@ -126,6 +126,34 @@ def test_without_a_rig_runs_are_converted_unchecked(
     assert run.channels == ("y", "x") and "rig" not in run.metadata
 
 
+def test_a_csv_geometry_file_with_s_m_alone_imports_a_run_whose_track_was_not_measured(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The geometry file stays required (a forgotten one is named), but ``s_m`` alone says
+    the track was not measured: the run is written without geometry (format version 3),
+    checked against the rig all the same."""
+    import h5py
+
+    source = tmp_path / "csv"
+    _csv(source, "north", dataclasses.replace(_run(0), geometry=None))
+    header = (source / "north_geometry.csv").read_text().splitlines()[0]
+    assert header.split(",")[0].strip() == "s_m" and "vertical_m" not in header
+    out = tmp_path / "h5"
+    code, err = _code_and_err(
+        capsys, ["import", "csv", str(source), "--out", str(out), "--rig", RIG]
+    )
+    assert code == 0, err
+    (run,) = load_runs(out)
+    assert run.geometry is None and run.metadata["rig"] == RIG
+    with h5py.File(out / "north.h5", "r") as file:
+        assert int(file.attrs["format_version"]) == 3 and "geometry" not in file
+    (source / "north_geometry.csv").unlink()
+    code, err = _code_and_err(
+        capsys, ["import", "csv", str(source), "--out", str(tmp_path / "h5b"), "--rig", RIG]
+    )
+    assert code == 2 and "missing north_geometry.csv" in err
+
+
 @pytest.mark.parametrize(
     ("run", "needles"),
     [
