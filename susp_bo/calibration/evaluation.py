@@ -53,6 +53,14 @@ class TrackRun:
     speed: SpeedProfile
     design: TrackDesign | None = None
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.geometry, TrackGeometry):  # e.g. a run's geometry None
+            raise ValueError(
+                f"TrackRun {self.track_id!r}: geometry is {type(self.geometry).__name__}; "
+                "expected a TrackGeometry (a run whose track was not measured has none: "
+                'simulate it on synthetic tracks, [output_error] model = "track_statistics")'
+            )
+
 
 class _RigCache(threading.local):
     """One :class:`Rig` (one PyBullet client) per rig spec, per worker thread.

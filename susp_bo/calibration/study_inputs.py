@@ -230,6 +230,8 @@ def store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
         "parameter_names": "the calibrated parameters",
         "output_error": "the output error ([output_error] model, sigma, correlation length)",
         "sensor_noise_m_s2": "the sensor noise",
+        "realization_length_m": "the length of the model's synthetic track realizations "
+        "(track_statistics; since session 35 from the runs' speed records and the rig)",
     }.get(error.key, repr(error.key))
     return StudyError(
         f"--resume: {out} holds the evaluations of another study: {what} changed "

@@ -242,7 +242,8 @@ def check_runs_have_tracks(config: StudyConfig, runs: tuple[MeasuredRun, ...]) -
     if not missing:
         return
     more = (
-        f" ({len(missing) - 1} more of the {len(runs)} runs have none: "
+        f" ({len(missing) - 1} more of the {len(runs)} runs "
+        f"{'has' if len(missing) == 2 else 'have'} none: "
         f"{', '.join(missing[1:4])}{', …' if len(missing) > 4 else ''})"
         if len(missing) > 1
         else ""
@@ -365,8 +366,8 @@ def store_fingerprint(
     With the summary likelihood the tracks are synthetic, so the runs' content digests are
     part of the data too (its pilot's second point is fitted to them). A run without
     geometry has a digest of its own (:meth:`MeasuredRun.content_digest`), and the
-    realizations' length (:func:`.study_track_statistics.realization_length_m`) is named
-    in it as well.
+    realizations' length (:func:`.study_track_statistics.realization_length_m`) is a key of
+    its own, ``realization_length_m``.
 
     Raises:
         ValueError: a study whose summary likelihood's pilot has run (fingerprint the study
@@ -378,11 +379,12 @@ def store_fingerprint(
             "prepared study (its TrackStatisticsPlan)"
         )
     data = [t.track_id for t in study.tracks]
+    realizations: dict[str, str] = {}
     if isinstance(study.error, TrackStatisticsPlan):
-        # the realizations' length too: ids name a realization's seed, not its length, and
-        # a store of session 34 (length then taken from the runs' geometry) is refused
         data += [run.content_digest() for run in study.runs]
-        data.append(f"realization_length_m={study.tracks[0].geometry.length_m!r}")
+        # ids name a realization's seed, not its length: a store of session 34 (length
+        # then taken from the runs' geometry) is refused, naming this key
+        realizations = {"realization_length_m": repr(study.tracks[0].geometry.length_m)}
     return study_fingerprint(
         (spec or study.spec).fingerprint(),
         json.dumps(data),
@@ -390,4 +392,5 @@ def store_fingerprint(
         output_error=json.dumps(dataclasses.asdict(study.error)),
         output_error_model=study.config.output_error.model,
         sensor_noise_m_s2=repr(study.noise_m_s2),
+        **realizations,
     )

@@ -3,10 +3,11 @@
 Reads the runs (file naming in :mod:`susp_bo.data.collect`, layouts in
 :mod:`susp_bo.data.importers`), converts their accelerations to m/s², and with
 ``--rig`` checks each against the rig as ``calibrate`` will (its channels, kept
-in the rig's order; the band and the Welch segment; the track covering the
-distance travelled plus the axle span) and records the rig's name in the run
-metadata. Every run is read and checked before any file is written; then
-``DIR/<run>.h5`` is written per run (the measured-run format ``calibrate`` reads).
+in the rig's order; the band and the Welch segment; the track, when it was measured,
+covering the distance travelled plus the axle span) and records the rig's name in the run
+metadata. Runs without track geometry are named on stderr. Every run is read and checked
+before any file is written; then ``DIR/<run>.h5`` is written per run (the measured-run
+format ``calibrate`` reads).
 """
 
 from __future__ import annotations
@@ -109,4 +110,12 @@ def run_import(args: argparse.Namespace) -> int:
         f"susp-bo import: wrote {len(checked)} run(s) to {out}{checked_against}",
         file=sys.stderr,
     )
+    untracked = [name for name, run in checked if run.geometry is None]
+    if untracked:  # said, so that a geometry left out by mistake is seen here
+        print(
+            f"susp-bo import: {len(untracked)} of them without track geometry (the track was "
+            f"not measured: {', '.join(untracked[:4])}{', …' if len(untracked) > 4 else ''});"
+            ' calibrate such runs with [output_error] model = "track_statistics"',
+            file=sys.stderr,
+        )
     return 0

@@ -27,6 +27,18 @@ from susp_bo.rig.track import GEOMETRY_COMPONENTS
 _GEOMETRY_VARIABLES = ("spacing_m", *GEOMETRY_COMPONENTS)
 """The geometry's variables: all of them, or none when the track was not measured."""
 _DESIGN_VARIABLES = tuple(f"design_{name}" for name in ("chainage_m", *DESIGN_COMPONENTS))
+_OTHER_VARIABLES = (
+    "accelerations",
+    "channels",
+    "units",
+    "sample_rate_hz",
+    "time_offset_s",
+    "speed_m_s",
+    "speed_time_s",
+    "metadata_json",
+)
+"""The layout's other variables (a run without geometry may hold no variable beyond these,
+the geometry's and the design's: a misnamed geometry is refused, not read as no track)."""
 _MAT_READ_ERRORS: tuple[type[Exception], ...] = (
     scipy.io.matlab.MatReadError,  # e.g. "Mat file appears to be truncated" (empty, short)
     OSError,
@@ -149,6 +161,19 @@ def read_mat_run(
             f"{[name for name in _GEOMETRY_VARIABLES if name not in variables]}; give all "
             f"of {list(_GEOMETRY_VARIABLES)}, or none of them when the track under the run "
             "was not measured"
+        )
+    unknown = sorted(
+        name
+        for name in variables
+        if not name.startswith("__")
+        and name not in (*_OTHER_VARIABLES, *_GEOMETRY_VARIABLES, *_DESIGN_VARIABLES)
+    )
+    if not given and unknown:
+        raise MeasuredDataError(
+            f"{mat_path}: no geometry variables, and variables the layout does not name: "
+            f"{unknown}; a measured track is {list(_GEOMETRY_VARIABLES)} (all of them), a "
+            "track that was not measured has none of them and no other variables than "
+            f"{list(_OTHER_VARIABLES)} and the design's {list(_DESIGN_VARIABLES)}"
         )
     if given:
         geometry = _geometry(

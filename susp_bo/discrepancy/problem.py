@@ -161,14 +161,6 @@ class DiagnosisProblem:
     paired: PairedOutputError | None = None
 
     def __post_init__(self) -> None:
-        unmeasured = [track.track_id for track in self.tracks if track.geometry is None]
-        if unmeasured:  # a run whose track was not measured (MeasuredRun.geometry None)
-            raise ValueError(
-                f"tracks: {unmeasured[0]} has no geometry (its track was not measured; "
-                f"{len(unmeasured)} of {len(self.tracks)} tracks); the discrepancy workflow "
-                "simulates every run on its own measured track: give each run's measured "
-                "track geometry"
-            )
         measured = np.asarray(self.measured, dtype=np.float64)
         if measured.ndim != 3 or measured.shape[0] != len(self.tracks):
             raise ValueError(

@@ -41,6 +41,7 @@ _WHAT = {
     "output_error": "another output error",
     "output_error_model": "another output-error model ([output_error] model)",
     "sensor_noise_m_s2": "another sensor noise",
+    "realization_length_m": "another length of the synthetic track realizations",
     "package_version": "another version of susp-bo",
     "store_schema_version": "another evaluation-store format",
 }

@@ -1,12 +1,14 @@
-"""A pilot run (:func:`simulate_noisy_spectra`) is a measured run: same spectra, same noise."""
+"""A pilot run (:func:`simulate_noisy_spectra`) is a measured run: same spectra, same noise;
+a track stretch without geometry is refused."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-from susp_bo.calibration.evaluation import simulate_noisy_spectra, simulate_spectra
+from susp_bo.calibration.evaluation import TrackRun, simulate_noisy_spectra, simulate_spectra
 from susp_bo.calibration.study_inputs import measured_log_spectra
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.rig.spec import load_rig_spec
@@ -27,3 +29,10 @@ def test_a_noisy_simulation_gives_the_spectra_of_the_synthetic_run_with_that_noi
     np.testing.assert_array_equal(quiet, simulate_spectra(spec, TRUTH, run.geometry, run.speed))
     other = simulate_noisy_spectra(spec, TRUTH, run.geometry, run.speed, None, 0.02, [7, 0, 3])
     assert np.max(np.abs(other - measured)) > 1e-3  # another draw of the noise
+
+
+def test_a_track_run_without_geometry_is_refused_naming_it() -> None:
+    from susp_bo.rig.track import SpeedProfile
+
+    with pytest.raises(ValueError, match=r"TrackRun 'run007': geometry is NoneType; expected"):
+        TrackRun("run007", None, SpeedProfile.constant(20.0, 10.0))  # type: ignore[arg-type]

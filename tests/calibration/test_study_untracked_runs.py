@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from susp_bo.calibration.study_inputs import StudyError
+from susp_bo.calibration.study_inputs import StudyError, store_mismatch
 from susp_bo.calibration.study_preparation import PreparedStudy, prepare_study, store_fingerprint
 from susp_bo.calibration.study_track_statistics import TrackStatisticsPlan, pilot_tracks
 from susp_bo.data.run_files import save_run
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.rig.spec import load_rig_spec
+from susp_bo.store import EvaluationStore, StoreMismatchError
 from susp_bo.study_config import OutputErrorConfig, StudyConfig
 
 PARAMETERS = ("secondary_vertical_damping", "yaw_damper_damping")
@@ -56,7 +57,7 @@ def test_models_on_the_runs_own_tracks_refuse_runs_without_geometry_naming_the_f
         prepare_study(_config(fast_rig, untracked, tmp_path / "out", model))
     assert str(info.value) == (
         f"data: {untracked / 'run_000.h5'}: the run has no track geometry (its track was not "
-        "measured: no geometry/ group) (1 more of the 2 runs have none: run_001.h5); "
+        "measured: no geometry/ group) (1 more of the 2 runs has none: run_001.h5); "
         f"output_error.model = '{model}' simulates every run on its own measured track: "
         'calibrate runs on unmeasured track with [output_error] model = "track_statistics" '
         "in a study .toml (their tracks known only by their statistics), or add the "
@@ -106,3 +107,13 @@ def test_track_statistics_takes_runs_without_geometry_with_the_same_tracks(
     fingerprints = [store_fingerprint(study) for study in studies]
     for other in fingerprints[1:]:  # other files: other content digests
         assert {k for k in other if other[k] != fingerprints[0][k]} == {"data"}
+    # the realizations' length is a key of its own: a store of session 34 (no such key)
+    # is refused naming it, not as "the measured data changed"
+    assert fingerprints[0]["realization_length_m"] == "780.0"
+    old = {k: v for k, v in fingerprints[0].items() if k != "realization_length_m"}
+    EvaluationStore(tmp_path / "old.sqlite", old, create=True).close()
+    with pytest.raises(StoreMismatchError) as refused:
+        EvaluationStore(tmp_path / "old.sqlite", fingerprints[0], create=False)
+    assert refused.value.key == "realization_length_m"
+    message = str(store_mismatch(tmp_path, refused.value))
+    assert "the length of the model's synthetic track realizations" in message

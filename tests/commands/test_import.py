@@ -143,6 +143,7 @@ def test_a_csv_geometry_file_with_s_m_alone_imports_a_run_whose_track_was_not_me
         capsys, ["import", "csv", str(source), "--out", str(out), "--rig", RIG]
     )
     assert code == 0, err
+    assert "1 of them without track geometry (the track was not measured: north)" in err
     (run,) = load_runs(out)
     assert run.geometry is None and run.metadata["rig"] == RIG
     with h5py.File(out / "north.h5", "r") as file:

@@ -230,6 +230,25 @@ def test_mat_without_geometry_round_trips_and_a_partial_geometry_is_refused(
         read_mat_run(path)
 
 
+def test_a_mat_run_with_misnamed_geometry_is_refused_not_read_as_an_unmeasured_track(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "run.mat"
+    write_mat_run(pinned_run(), path)
+    variables = {k: v for k, v in scipy.io.loadmat(path).items() if not k.startswith("__")}
+    geometry = {"spacing_m", *GEOMETRY_COMPONENTS}
+    renamed = {k: v for k, v in variables.items() if k not in geometry} | {
+        k.removesuffix("_m").removesuffix("_rad"): variables[k] for k in geometry
+    }  # spacing, vertical, ...: the geometry under names the layout does not know
+    scipy.io.savemat(path, renamed)
+    with pytest.raises(
+        MeasuredDataError,
+        match=r"run\.mat: no geometry variables, and variables the layout does not name: "
+        r"\['alignment', 'cross_level', 'gauge', 'spacing', 'vertical'\]",
+    ):
+        read_mat_run(path)
+
+
 def test_csv_without_irregularities_or_without_a_geometry_file(tmp_path: Path) -> None:
     for run in (untracked(pinned_run()), untracked(pinned_run(design=True))):
         files = [tmp_path / name for name in ("acc.csv", "geo.csv", "speed.csv")]
