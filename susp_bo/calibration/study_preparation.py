@@ -21,6 +21,11 @@ import numpy as np
 from susp_bo.calibration.evaluation import TrackRun
 from susp_bo.calibration.likelihood import OutputError, estimate_output_error
 from susp_bo.calibration.paired_error import PairedOutputError
+from susp_bo.calibration.record_window import (
+    RecordWindowError,
+    check_track_covers_the_speed_record,
+    compared_window,
+)
 from susp_bo.calibration.study_inputs import (
     StudyError,
     check_budget,
@@ -308,14 +313,24 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     problem = speed_problem(spec, slowest[name], speed_label=f"data: {config.data / name}")
     if problem is not None:  # every simulation of it would be refused, one by one
         raise StudyError(problem)
+    noise = sensor_noise(config, runs)  # one sample rate, before the windows are compared
+    try:  # the samples the simulation records, and the track it needs for them
+        compared = tuple(
+            compared_window(run, spec, str(config.data / name))
+            for name, run in zip(run_names(runs, config.data), runs)
+        )
+        if config.output_error.model != "track_statistics":
+            for name, run in zip(run_names(runs, config.data), runs):
+                check_track_covers_the_speed_record(run, spec, str(config.data / name))
+    except RecordWindowError as error:
+        raise StudyError(f"data: {error}") from None
     try:
-        measured = measured_log_spectra(spec, runs)
+        measured = measured_log_spectra(spec, compared)
     except ValueError as error:
         raise StudyError(f"data: {error}") from error
     all_names = spec.calibration_names
     columns = [all_names.index(name) for name in names]
     bounds = spec.calibration_bounds[:, columns]
-    noise = sensor_noise(config, runs)
     if config.output_error.model == "track_statistics":
         check_exchangeable_runs(runs, run_names(runs, config.data))
         if config.output_error.sensor_noise_m_s2 is None and any(
@@ -343,7 +358,7 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
             )
             for index, run in enumerate(runs)
         )
-        error = _output_error(config, measured, spec.channels, runs, spec, noise)
+        error = _output_error(config, measured, spec.channels, compared, spec, noise)
     return PreparedStudy(
         config=config,
         spec=spec,

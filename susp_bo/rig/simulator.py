@@ -50,6 +50,7 @@ __all__ = [
     "SimulationFailed",
     "axle_span_m",
     "excitation_for_run",
+    "recorded_samples",
     "synthetic_track",
     "synthetic_track_length_m",
 ]
@@ -133,6 +134,25 @@ def synthetic_track_length_m(
     speed = sim.speed_m_s if speed_m_s is None else speed_m_s
     duration = sim.duration_s if duration_s is None else duration_s
     return speed * (sim.warm_up_s + duration) + axle_span_m(spec) + 10.0
+
+
+def recorded_samples(spec: RigSpec, total_s: float) -> tuple[float, int, float]:
+    """What :meth:`Rig.simulate` records of a run whose speed record lasts ``total_s`` (s).
+
+    Returns:
+        ``(first_s, n, interval_s)``: the time of the first recorded sample on the speed
+        record's clock (s; samples are boxcar means labelled at their interval's centre,
+        so ``first_s`` is half an interval after the warm-up's end), the number of samples
+        and the sample interval (s). The same integer rounding as the simulation's step
+        grid (:func:`excitation_for_run`) and its warm-up cut.
+    """
+    sim = spec.simulation
+    per_sample = round(1.0 / (sim.time_step_s * sim.sample_rate_hz))
+    n_steps = round(total_s / sim.time_step_s)
+    n_steps -= n_steps % per_sample
+    interval = per_sample * sim.time_step_s
+    start = round(sim.warm_up_s / interval)
+    return (start + 0.5) * interval, n_steps // per_sample - start, interval
 
 
 def integrate(
