@@ -57,12 +57,16 @@ def compared_window(run: MeasuredRun, spec: RigSpec, source: str) -> MeasuredRun
 
     Raises:
         RecordWindowError: the accelerations start more than half a sample after the
-            simulated record, or stop more than half a sample before it.
+            simulated record or stop before it, or what is left is too short for the
+            spectra (or the warm-up leaves fewer than 2 samples).
     """
     first_s, n_simulated, interval_s = recorded_samples(spec, run.speed.duration_s)
     rate = run.sample_rate_hz
     count = round(n_simulated * interval_s * rate)
-    offset = (first_s - run.time_offset_s) * rate  # measured samples before the record
+    # the centre of the first measured-rate sample inside the simulated record's first
+    # interval (its first label itself when the run is sampled at the rig's rate)
+    anchor_s = first_s - 0.5 * interval_s + 0.5 / rate
+    offset = (anchor_s - run.time_offset_s) * rate  # measured samples before the record
     # the nearest sample, half-way rounded down: a record labelled at its intervals' starts
     # (5.00, 5.01, …) against the simulation's centres (5.005, …) is the same record
     start = max(0, math.ceil(offset - 0.5 - 1e-9))
@@ -70,24 +74,37 @@ def compared_window(run: MeasuredRun, spec: RigSpec, source: str) -> MeasuredRun
     simulated_end_s = first_s + (n_simulated - 1) * interval_s
     warm_up = spec.simulation.warm_up_s
     where = (
-        f"{source}: its accelerations cover {run.time_offset_s:g} … {last_s:g} s on its speed "
-        f"record's clock, but the rig simulates this run over its whole speed record "
-        f"(0 … {run.speed.duration_s:g} s) and records after its warm-up of {warm_up:g} s: "
-        f"{first_s:g} … {simulated_end_s:g} s; the measured and simulated spectra must "
-        "come from the same stretch of track"
+        f"{source}: its accelerations cover {run.time_offset_s:.10g} … {last_s:.10g} s on its "
+        f"speed record's clock, but the rig simulates this run over its whole speed record "
+        f"(0 … {run.speed.duration_s:.10g} s) and records after its warm-up of "
+        f"{warm_up:.10g} s: {first_s:.10g} … {simulated_end_s:.10g} s; the measured and "
+        "simulated spectra must come from the same stretch of track"
     )
+    if n_simulated < 2:
+        raise RecordWindowError(
+            f"{where}: the speed record ends before the warm-up leaves 2 samples; give a "
+            "longer run, or lower the rig's simulation.warm_up_s"
+        )
     if offset < -TOLERANCE_SAMPLES:
         raise RecordWindowError(
             f"{where}: the accelerations start after the simulated record; set the rig's "
-            f"simulation.warm_up_s to {run.time_offset_s:g} s (at most the first sample's "
-            "time), or give a speed record that starts warm_up_s before the first sample"
+            f"simulation.warm_up_s to {run.time_offset_s:.10g} s (at most the first "
+            "sample's time), or give a speed record that starts warm_up_s before the first "
+            "sample"
         )
-    if start + count > run.n_samples + TOLERANCE_SAMPLES:
+    if start + count > run.n_samples:
         raise RecordWindowError(
             f"{where}: the speed record runs on after the last acceleration sample; cut it "
-            f"to end at the last sample ({last_s:g} s)"
+            f"to end at the last sample ({last_s:.10g} s)"
         )
-    count = min(count, run.n_samples - start)
+    try:
+        spec.spectrum.check_sample_rate(rate, count / rate)
+    except ValueError as error:
+        raise RecordWindowError(
+            f"{where}: what is left after the warm-up ({count / rate:.10g} s) is too short "
+            f"for the spectra ({error}); give a longer run, or lower the rig's "
+            "simulation.warm_up_s"
+        ) from None
     if start == 0 and count == run.n_samples:
         return run
     return dataclasses.replace(

@@ -83,7 +83,7 @@ def excitation_for_run(
         raise ValueError(
             f"speed: the speed record lasts {profile.duration_s} s; the run needs {total_s} s"
         )
-    n_steps = round(total_s / time_step_s)
+    n_steps = math.floor(total_s / time_step_s + 1e-9)  # never past the speed record
     per_sample = round(1.0 / (time_step_s * sample_rate_hz))
     n_steps -= n_steps % per_sample
     times = np.arange(n_steps + 1) * time_step_s
@@ -148,8 +148,7 @@ def recorded_samples(spec: RigSpec, total_s: float) -> tuple[float, int, float]:
     """
     sim = spec.simulation
     per_sample = round(1.0 / (sim.time_step_s * sim.sample_rate_hz))
-    n_steps = round(total_s / sim.time_step_s)
-    n_steps -= n_steps % per_sample
+    n_steps = math.floor(total_s / sim.time_step_s + 1e-9)
     interval = per_sample * sim.time_step_s
     start = round(sim.warm_up_s / interval)
     return (start + 0.5) * interval, n_steps // per_sample - start, interval

@@ -67,16 +67,19 @@ def imported(fast_rig: Path) -> tuple[MeasuredRun, TrackGeometry]:
 
 
 def test_recorded_samples_are_what_the_rig_records(fast_rig: Path) -> None:
-    spec = load_rig_spec(fast_rig)
-    track = synthetic_track(spec, seed=1)
-    speed = spec.simulation.speed_m_s
-    with Rig(spec) as rig:
-        for total_s in (9.0, 6.497):  # the rig's own record, and one off the step grid
-            response = rig.simulate(track, SpeedProfile.constant(speed, total_s))
-            first_s, n, interval_s = recorded_samples(spec, total_s)
-            assert n == len(response.time_s)
-            assert first_s == pytest.approx(response.time_s[0], abs=1e-12)
-            assert interval_s == pytest.approx(np.diff(response.time_s).mean(), rel=1e-12)
+    base = load_rig_spec(fast_rig)
+    track = synthetic_track(base, seed=1)
+    speed = base.simulation.speed_m_s
+    # warm-ups on and off the 10 ms record grid; speed records on the step grid, off it
+    # rounding down, and off it rounding up (the step count must not pass the record)
+    for spec in (base, base.with_simulation(warm_up_s=1.013)):
+        with Rig(spec) as rig:
+            for total_s in (9.0, 6.497, 6.4985):
+                response = rig.simulate(track, SpeedProfile.constant(speed, total_s))
+                first_s, n, interval_s = recorded_samples(spec, total_s)
+                assert n == len(response.time_s), (spec.simulation.warm_up_s, total_s)
+                assert first_s == pytest.approx(response.time_s[0], abs=1e-12)
+                assert interval_s == pytest.approx(np.diff(response.time_s).mean(), rel=1e-12)
 
 
 def test_a_synthetic_run_is_compared_whole_and_unchanged(fast_rig: Path) -> None:
@@ -107,6 +110,26 @@ def test_an_imported_run_loses_its_first_warm_up_seconds_and_then_matches_the_si
     # never recorded (0.33: sixteen times that)
     assert aligned < 0.04, aligned
     assert misaligned > 8 * aligned, (aligned, misaligned)
+
+
+def test_a_run_sampled_faster_than_the_rig_keeps_the_same_stretch_of_track(
+    fast_rig: Path, imported: tuple[MeasuredRun, TrackGeometry]
+) -> None:
+    """The same record at 1000 Hz (each 10 ms sample held for ten 1 ms samples, labelled
+    at their centres): the window holds the same stretch, ten times the samples."""
+    spec = load_rig_spec(fast_rig)
+    run, _ = imported
+    fine = dataclasses.replace(
+        run,
+        accelerations_m_s2=np.repeat(run.accelerations_m_s2, 10, axis=1),
+        sample_rate_hz=10 * run.sample_rate_hz,
+        time_offset_s=run.time_offset_s - 0.0045,  # the first 1 ms sample's centre
+    )
+    window = compared_window(fine, spec, "run_000.h5")
+    coarse = compared_window(run, spec, "run_000.h5")
+    np.testing.assert_array_equal(
+        window.accelerations_m_s2, np.repeat(coarse.accelerations_m_s2, 10, axis=1)
+    )
 
 
 def test_what_cannot_be_aligned_is_refused_naming_the_file_and_both_windows(
@@ -144,6 +167,12 @@ def test_what_cannot_be_aligned_is_refused_naming_the_file_and_both_windows(
     )
     with pytest.raises(RecordWindowError, match=r"track shorter than its simulation"):
         check_track_covers_the_speed_record(short, spec, "run_000.h5")
+    long_warm_up = spec.with_simulation(warm_up_s=3.0)  # 3.5 s left: under a 4 s segment
+    with pytest.raises(RecordWindowError, match=r"after the warm-up \(3\.5 s\) is too short"):
+        compared_window(run, long_warm_up, "run_000.h5")
+    past_the_record = spec.with_simulation(warm_up_s=7.0)  # the record lasts 6.5 s
+    with pytest.raises(RecordWindowError, match=r"ends before the warm-up leaves 2 samples"):
+        compared_window(run, past_the_record, "run_000.h5")
 
 
 def test_a_study_refuses_a_run_it_cannot_align_before_any_simulation(
