@@ -20,8 +20,9 @@ from susp_bo.calibration.study_inputs import StudyError, measured_log_spectra
 from susp_bo.calibration.study_preparation import prepare_study
 from susp_bo.data.measured import MeasuredRun
 from susp_bo.data.run_files import save_run
+from susp_bo.data.run_validation import validate_run
 from susp_bo.data.synthetic import synthesize_runs
-from susp_bo.rig.simulator import Rig, recorded_samples, synthetic_track
+from susp_bo.rig.simulator import Rig, axle_span_m, recorded_samples, synthetic_track
 from susp_bo.rig.spec import load_rig_spec
 from susp_bo.rig.track import SpeedProfile, TrackGeometry
 from susp_bo.study_config import OutputErrorConfig, StudyConfig
@@ -42,6 +43,11 @@ def _shifted(geometry: TrackGeometry, metres: float) -> TrackGeometry:
         geometry.cross_level_rad[k:],
         geometry.gauge_m[k:],
     )
+
+
+def _speed_record_to(run: MeasuredRun, end_s: float) -> MeasuredRun:
+    """``run`` with its (constant) speed record ending at ``end_s``."""
+    return dataclasses.replace(run, speed=SpeedProfile.constant(run.speed.speed_m_s[0], end_s))
 
 
 @pytest.fixture(scope="module")
@@ -142,29 +148,20 @@ def test_what_cannot_be_aligned_is_refused_naming_the_file_and_both_windows(
         compared_window(run, late, "run_000.h5")
     with pytest.raises(RecordWindowError, match=r"set the rig's simulation\.warm_up_s to 0\.505"):
         compared_window(run, late, "run_000.h5")
-    longer = MeasuredRun(
-        run.geometry,
-        SpeedProfile.constant(run.speed.speed_m_s[0], 7.0),
-        run.channels,
-        run.accelerations_m_s2,
-        run.sample_rate_hz,
-        time_offset_s=run.time_offset_s,
-    )
+    longer = _speed_record_to(run, 7.0)  # 0.5 s past the last sample
     with pytest.raises(RecordWindowError, match=r"cut it to end at the last sample \(6\.495 s\)"):
         compared_window(longer, spec, "run_000.h5")
     check_track_covers_the_speed_record(run, spec, "run_000.h5")  # long enough
-    short = MeasuredRun(
-        TrackGeometry(
-            run.geometry.spacing_m,
-            *(getattr(run.geometry, c)[:2100] for c in ("vertical_m", "alignment_m")),
-            *(getattr(run.geometry, c)[:2100] for c in ("cross_level_rad", "gauge_m")),
+    geometry = run.geometry
+    short = dataclasses.replace(  # 539.75 m: the accelerations need 539.6 m, the record 540
+        run,
+        geometry=TrackGeometry(
+            geometry.spacing_m,
+            *(getattr(geometry, c)[:2160] for c in ("vertical_m", "alignment_m")),
+            *(getattr(geometry, c)[:2160] for c in ("cross_level_rad", "gauge_m")),
         ),
-        run.speed,
-        run.channels,
-        run.accelerations_m_s2,
-        run.sample_rate_hz,
-        time_offset_s=run.time_offset_s,
     )
+    validate_run(short, axle_span_m=axle_span_m(spec))  # long enough for the accelerations
     with pytest.raises(RecordWindowError, match=r"track shorter than its simulation"):
         check_track_covers_the_speed_record(short, spec, "run_000.h5")
     long_warm_up = spec.with_simulation(warm_up_s=3.0)  # 3.5 s left: under a 4 s segment
@@ -181,14 +178,7 @@ def test_a_study_refuses_a_run_it_cannot_align_before_any_simulation(
     run, _ = imported
     data = tmp_path / "data"
     data.mkdir()
-    longer = MeasuredRun(
-        run.geometry,
-        SpeedProfile.constant(run.speed.speed_m_s[0], 7.0),
-        run.channels,
-        run.accelerations_m_s2,
-        run.sample_rate_hz,
-        time_offset_s=run.time_offset_s,
-    )
+    longer = _speed_record_to(run, 7.0)  # 0.5 s past the last sample
     save_run(run, data / "run_000.h5")
     save_run(longer, data / "run_001.h5")
     config = StudyConfig(
