@@ -32,8 +32,8 @@ from susp_bo.rig.simulator import axle_span_m, recorded_samples
 from susp_bo.rig.spec import RigSpec
 
 TOLERANCE_SAMPLES = 0.5
-"""How far (in measured samples) the measured record may start after the simulated one,
-or stop before it: half a sample, the labelling ambiguity of a sampled record."""
+"""How far (in measured samples) the measured record may start after the simulated one:
+half a sample, the labelling ambiguity of a sampled record."""
 
 
 class RecordWindowError(ValueError):
@@ -114,6 +114,12 @@ def compared_window(run: MeasuredRun, spec: RigSpec, source: str) -> MeasuredRun
     )
 
 
+def simulated_track_m(run: MeasuredRun, spec: RigSpec) -> float:
+    """Track (m) a simulation of ``run`` covers: the distance of its whole speed record
+    (warm-up included) plus the rig's axle span."""
+    return float(run.speed.distance_m(run.speed.duration_s)) + axle_span_m(spec)
+
+
 def check_track_covers_the_speed_record(run: MeasuredRun, spec: RigSpec, source: str) -> None:
     """Refuses a measured track shorter than the simulation of its run needs.
 
@@ -129,7 +135,7 @@ def check_track_covers_the_speed_record(run: MeasuredRun, spec: RigSpec, source:
     if run.geometry is None:
         return
     span = axle_span_m(spec)
-    needed = float(run.speed.distance_m(run.speed.duration_s)) + span
+    needed = simulated_track_m(run, spec)
     if needed > run.geometry.length_m * (1 + 1e-9):
         raise RecordWindowError(
             f"{source}: track shorter than its simulation: the geometry covers "

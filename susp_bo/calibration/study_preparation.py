@@ -314,14 +314,12 @@ def prepare_study(config: StudyConfig, resume: bool = False) -> PreparedStudy:
     if problem is not None:  # every simulation of it would be refused, one by one
         raise StudyError(problem)
     noise = sensor_noise(config, runs)  # one sample rate, before the windows are compared
+    files = [str(config.data / name) for name in run_names(runs, config.data)]
     try:  # the samples the simulation records, and the track it needs for them
-        compared = tuple(
-            compared_window(run, spec, str(config.data / name))
-            for name, run in zip(run_names(runs, config.data), runs)
-        )
+        compared = tuple(compared_window(run, spec, file) for file, run in zip(files, runs))
         if config.output_error.model != "track_statistics":
-            for name, run in zip(run_names(runs, config.data), runs):
-                check_track_covers_the_speed_record(run, spec, str(config.data / name))
+            for file, run in zip(files, runs):
+                check_track_covers_the_speed_record(run, spec, file)
     except RecordWindowError as error:
         raise StudyError(f"data: {error}") from None
     try:

@@ -37,11 +37,11 @@ from susp_bo.calibration.evaluation import (
     TrackRun,
     simulate_noisy_spectra,
 )
+from susp_bo.calibration.record_window import simulated_track_m
 from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.calibration.track_statistics import TrackStatisticsError, minimum_pilot_runs
 from susp_bo.calibration.track_statistics_pilot import PILOT_RUNS, PilotRecord, two_stage_error
 from susp_bo.data.measured import MeasuredRun
-from susp_bo.rig.simulator import axle_span_m
 from susp_bo.rig.spec import RigSpec
 from susp_bo.rig.track import TrackGeometry
 
@@ -181,9 +181,7 @@ def realization_length_m(runs: Sequence[MeasuredRun], spec: RigSpec) -> float:
         runs: the ν measured runs.
         spec: the rig (its axle span, m).
     """
-    span = axle_span_m(spec)
-    travelled = max(float(run.speed.distance_m(run.speed.duration_s)) for run in runs)
-    return travelled + span + REALIZATION_MARGIN_M
+    return max(simulated_track_m(run, spec) for run in runs) + REALIZATION_MARGIN_M
 
 
 def _realizations(
