@@ -28,6 +28,7 @@ import dataclasses
 import math
 
 from susp_bo.data.measured import MeasuredRun
+from susp_bo.data.run_validation import record_end_s
 from susp_bo.rig.simulator import axle_span_m, recorded_samples
 from susp_bo.rig.spec import RigSpec
 
@@ -70,7 +71,7 @@ def compared_window(run: MeasuredRun, spec: RigSpec, source: str) -> MeasuredRun
     # the nearest sample, half-way rounded down: a record labelled at its intervals' starts
     # (5.00, 5.01, …) against the simulation's centres (5.005, …) is the same record
     start = max(0, math.ceil(offset - 0.5 - 1e-9))
-    last_s = run.time_offset_s + (run.n_samples - 1) / rate
+    last_s = record_end_s(run)
     simulated_end_s = first_s + (n_simulated - 1) * interval_s
     warm_up = spec.simulation.warm_up_s
     where = (

@@ -47,7 +47,7 @@ from susp_bo.calibration.track_statistics import TrackStatisticsError
 from susp_bo.calibration.track_statistics_pilot import PilotRecord
 from susp_bo.data.measured import MeasuredRun
 from susp_bo.data.run_files import load_runs
-from susp_bo.data.run_validation import validate_run
+from susp_bo.data.run_validation import record_end_s, validate_run
 from susp_bo.output_folder import (
     CONFIG_NAME,
     FIGURE_NAMES,
@@ -195,7 +195,7 @@ def check_resume_budget(config: StudyConfig) -> None:
 def _slowest_speed(run: MeasuredRun) -> float:
     """The slowest speed (m/s) a simulation of ``run`` goes through: its speed profile from
     0 to the end of its accelerations (piecewise linear, so the samples and that end)."""
-    end_s = run.time_offset_s + (run.n_samples - 1) / run.sample_rate_hz
+    end_s = record_end_s(run)
     speed = run.speed
     inside = np.asarray(speed.speed_m_s)[np.asarray(speed.time_s) <= end_s]
     return float(min(np.min(inside, initial=np.inf), float(speed.speed_at(end_s))))
