@@ -188,6 +188,8 @@ def run_experiment(
         "check": (payload.get("surrogate_check") or {}).get("verdict"),
         "verdict": reliability["verdict"],
         "reasons": [r["code"] for r in reliability.get("reasons", [])],
+        "lack_of_fit_ratio": evidence.get("lack_of_fit_ratio"),
+        "summary_misfit_p": evidence.get("summary_misfit_p"),  # track_statistics only
         "n_evaluations": int(payload["n_evaluations"]),
         "n_simulations": int(payload["n_simulations"]),
         "output_error": {k: v for k, v in payload["output_error"].items() if k != "channels"},

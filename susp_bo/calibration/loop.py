@@ -32,9 +32,10 @@ that exposes its spectra and the measured runs (``spectra`` and ``measured``, as
 unpaired B, whether the simulated runs reproduce the measured ones at all
 (:func:`.track_match.with_track_match`: tracks that are not the runs' own, session 32),
 and the lack of fit between ν ≥ 2 runs (:func:`.lack_of_fit.with_lack_of_fit`: a model
-that misses an effect every run shows; with one run it is recorded as not checked),
-whoever calls — a study, ``susp-bo diagnose``'s recalibration or the Python API (session
-27: before, only a study applied it).
+that misses an effect every run shows; with one run it is recorded as not checked) and,
+under the summary likelihood, the summaries its fit does not use
+(:func:`.summary_misfit.with_summary_misfit`), whoever calls — a study, ``susp-bo
+diagnose``'s recalibration or the Python API (session 27: before, only a study applied it).
 
 Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
 for the surrogate they are imputed with the lowest finite log L observed so far
@@ -107,6 +108,7 @@ from susp_bo.calibration.sampling import (
     surrogate_log_likelihood,
 )
 from susp_bo.calibration.settings import CalibrationSettings
+from susp_bo.calibration.summary_misfit import SummaryMisfitTest, with_summary_misfit
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 from susp_bo.calibration.track_match import with_track_match
 from susp_bo.calibration.trust_region import box_edge, held_points, hold_points, to_global_unit
@@ -494,6 +496,9 @@ def calibrate(
         result = with_track_match(result, evaluate, np.asarray(measured))
         if lack_of_fit:
             result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
+            test = getattr(getattr(evaluate, "error", None), "misfit", None)
+            if isinstance(test, SummaryMisfitTest):  # the summary likelihood's own check
+                result = with_summary_misfit(result, evaluate, np.asarray(measured), test)  # type: ignore[arg-type]
     if result.reliability is not None:
         logger.info(result.reliability.sentence)
     return result

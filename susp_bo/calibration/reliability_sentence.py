@@ -36,6 +36,10 @@ COMMAND_LINE_ADVICE = {
     "not_converged": "rerun with --resume --budget {more}",
     "below_expected_fit": "run susp-bo diagnose on this result to look for the missing "
     "physics; if the search may sit in a local optimum, rerun with --resume --budget {more}",
+    "summary_misfit": "the model lacks physics these runs show; susp-bo diagnose, which "
+    "names the missing effect, needs each run's measured track: measure the tracks and "
+    'calibrate with [output_error] model = "paired", or add the suspected effect to the '
+    "rig file and calibrate again",
     "runs_not_reproduced": "if the runs' tracks were not measured, measure them and give "
     "each with its run (the measured-data format's track geometry), then calibrate with "
     '[output_error] model = "paired" and [search] local = true, or calibrate with '
@@ -78,6 +82,10 @@ PYTHON_ADVICE = {
     "not_converged": _MORE,
     "below_expected_fit": "look for physics the model misses (susp-bo diagnose examines a "
     "study's results folder); if the search may sit in a local optimum, " + _MORE,
+    "summary_misfit": "the model lacks physics these runs show: add the suspected effect "
+    "to the rig (susp_bo.discrepancy.effects) and calibrate again, or measure the tracks "
+    "and look for it with the paired model (susp_bo.discrepancy names effects from each "
+    "run's residuals on its own track)",
     "runs_not_reproduced": "if the simulated tracks are not the runs' own, simulate each "
     "run on its own measured track and calibrate with the paired model (PairedOutputError, "
     "CalibrationSettings(local_search=True)), or, if the tracks cannot be measured, use "
@@ -159,8 +167,8 @@ def advice_code(
 ) -> str:
     """The key of the advice a not-trusted sentence gives: the first reason's code, or what
     replaces it (``noisy``, ``failed_scattered``, ``narrow``, ``additive_kernel``,
-    ``hmc_stuck``, ``box_left_mass``); :mod:`.kernel_advice` asks it whether a gain would be
-    used before paying for the fit."""
+    ``hmc_stuck``, ``box_left_mass``, ``summary_misfit``); :mod:`.kernel_advice` asks it
+    whether a gain would be used before paying for the fit."""
     first = reasons[0]
     table = PYTHON_ADVICE if advice_for == "python" else COMMAND_LINE_ADVICE
     # a noisy log L, or failures that strike anywhere, defeat every other remedy (more
@@ -181,6 +189,8 @@ def advice_code(
         or first.get("tail_at_face")
     ):
         code = "box_left_mass"  # more budget would refine the same box
+    if code == "below_expected_fit" and first.get("summary_misfit_p") is not None:
+        code = "summary_misfit"  # tracks known by statistics: diagnose cannot name it
     return code
 
 

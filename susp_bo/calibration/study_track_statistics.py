@@ -325,7 +325,8 @@ def pilot_point(record: PilotRecord, bounds: np.ndarray) -> np.ndarray:
 def pilot_payload(
     error: TrackStatisticsError, record: PilotRecord, bounds: np.ndarray, names: Sequence[str]
 ) -> dict[str, object]:
-    """``result.json["output_error"]``'s pilot fields (physical units)."""
+    """``result.json["output_error"]``'s pilot fields (physical units); ``misfit_summaries``
+    is k, the summaries of the goodness-of-fit test (:mod:`.summary_misfit`; null: none)."""
     point = pilot_point(record, bounds)
     return {
         "pilot_runs": int(error.pilot_runs),
@@ -334,4 +335,5 @@ def pilot_payload(
         "pilot_fit_converged": bool(record.converged),
         "shrinkage": float(error.shrinkage),
         "summary_covariance": np.asarray(error.covariance).tolist(),
+        "misfit_summaries": None if error.misfit is None else error.misfit.dof,
     }

@@ -78,6 +78,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from susp_bo.calibration.summary_misfit import SummaryMisfitTest, summary_misfit_test
+
 WEIGHT_SHARE = 0.4
 """Share of the pilot runs that estimate Σ̂ for the weights A; the rest estimate C (kept
 apart so that C is not fitted to the noise A was fitted to)."""
@@ -132,6 +134,8 @@ class TrackStatisticsError:
         pilot_runs: M, the pilot runs A and C came from (recorded, not used; 0 = unknown).
         shrinkage: the Ledoit–Wolf intensity of Σ̂ in [0, 1] (recorded, not used; NaN =
             unknown).
+        misfit: the goodness-of-fit test of the summaries the fit does not use
+            (:mod:`.summary_misfit`; the verdict applies it), or None (not tested).
 
     Raises:
         ValueError: a field of the wrong shape, non-finite, an asymmetric or not positive
@@ -144,6 +148,7 @@ class TrackStatisticsError:
     n_simulated: int
     pilot_runs: int = 0
     shrinkage: float = math.nan
+    misfit: SummaryMisfitTest | None = None
     model: str = field(default="track_statistics", init=False)
 
     expectation_bounds_maximum: ClassVar[bool] = True
@@ -210,6 +215,9 @@ def track_statistics_error(
         n_measured: ν.
         n_simulated: μ.
 
+    The error carries the goodness-of-fit test of the summaries its fit does not use
+    (:func:`.summary_misfit.summary_misfit_test`, from the same pilot runs and Jacobian).
+
     Raises:
         ValueError: shapes that disagree, non-finite values, too few pilot runs, a band
             that does not vary over the pilot, or a parameter whose Jacobian row is zero
@@ -260,7 +268,13 @@ def track_statistics_error(
     # the sample covariance (÷ (n − 1)) times the Hartlap factor (n − 1) / (n − q − 2)
     covariance = summaries.T @ summaries / (n - q - 2)
     return TrackStatisticsError(
-        weights.reshape(*y.shape[1:], q), covariance, n_measured, n_simulated, m, shrinkage
+        weights.reshape(*y.shape[1:], q),
+        covariance,
+        n_measured,
+        n_simulated,
+        m,
+        shrinkage,
+        summary_misfit_test(y, j, n_measured, n_simulated),
     )
 
 

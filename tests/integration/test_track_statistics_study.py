@@ -82,6 +82,11 @@ def test_the_pilot_runs_through_the_store_and_result_json_records_it(statistics_
     assert mean == pytest.approx(expected, rel=1e-9) and sd == pytest.approx(1.0)
     assert payload["reliability"]["verdict"] == "not_trusted"
     assert "budget_too_small" in {r["code"] for r in payload["reliability"]["reasons"]}
+    # the goodness-of-fit test of the summaries the fit does not use ran at the best point:
+    # M = 50 allows k <= 24, so two band groups of the fast rig's 10 channels
+    evidence = payload["reliability"]["evidence"]
+    assert error["misfit_summaries"] == evidence["summary_misfit_dof"] == 20
+    assert 0.0 <= evidence["summary_misfit_p"] <= 1.0 and evidence["summary_misfit_t2"] > 0
     assert "pilot of 2 x 50 runs" in stderr and "pilot done:" in stderr
 
 

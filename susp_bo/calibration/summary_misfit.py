@@ -1,0 +1,257 @@
+"""Goodness of fit of the summary likelihood: the summaries its fit does not use.
+
+:mod:`.track_statistics` calibrates on q summaries s = Aᵀ y for q parameters, so the fit
+zeroes them whatever the data: its log L has no goodness-of-fit power of its own, and a
+model error the parameters can partly absorb goes unseen (session 34, exact summary fits
+on the linearised rig: a conicity of 0.15 in the data against 0.10 in the model put a
+parameter 3.5 sd off with the lack of fit between runs at F 1.1–1.7, under its limit).
+
+This test looks where the fit cannot reach. Per channel, the mean log amplitude over each
+of :data:`BAND_GROUPS` contiguous groups of bands (k = C x groups summaries), made
+orthogonal to the Jacobian's q columns at the pilot point (B = (I − Q Qᵀ) G, Q an
+orthonormal basis of the Jacobian's columns): to first order no change of the parameters
+moves Bᵀ h̄(w), so at the fitted point, as at the truth,
+
+    r = Bᵀ (ȳ − h̄(ŵ)) ~ N(0, κ C_B),  κ = 1/ν + 1/μ,  C_B = Bᵀ Σ B,
+
+for an exact model (Σ the covariance of one run's spectrum over track realizations and
+sensor noise, :mod:`.track_statistics`). C_B is the sample covariance of the M pilot runs'
+B-summaries (B does not depend on them), so with x = r / √κ,
+
+    T² = xᵀ Ĉ_B⁻¹ x ~ Hotelling T²(k, M − 1),  (M − k) / (k (M − 1)) T² ~ F(k, M − k),
+
+exactly for Gaussian spectra. A model error that shows in some channel's level or shape
+(a missing mode, another conicity, a stiffer spring) and that the q parameters cannot
+reproduce leaves r away from 0, and p = P(F ≥ observed) falls. The verdict refuses a
+result whose p is below :data:`P_LIMIT` (``below_expected_fit``: the model misses
+something in the data), a rule applied after the others like the lack of fit between runs
+(:mod:`.lack_of_fit`); unlike that one it works with a single measured run.
+
+Measured (session 36; exact summary fits on the linearised rig, the demo's q = 7, ν = μ = 3,
+noise 0.01 m/s², M = 100, seed 34; ``python benchmarks/track_statistics_misfit.py``): see
+the README ("Which output-error model applies") for the figures.
+
+What it cannot see: an error the q parameters reproduce in every channel-band group (the
+fit absorbs it), or one confined to a band too narrow to move its group's mean beyond the
+track scatter. The test is first order in the parameters: a fitted point far from the
+pilot point on a strongly curved response could leave a residual of the parameters' own
+(the pilot's second stage sits at the summaries' fit, which the loop's best point is
+near).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from scipy import stats
+
+from susp_bo.calibration.reliability_rules import Reason
+from susp_bo.calibration.result import CalibrationResult
+from susp_bo.calibration.trust_region import best_point
+from susp_bo.numerics import one_blas_thread
+
+BAND_GROUPS = 3
+"""Contiguous groups of bands per channel (low, middle, high frequencies)."""
+P_LIMIT = 1e-3
+"""p-value below which the verdict refuses the result (one false refusal in 1 000 exact
+models)."""
+
+
+class SpectraSource(Protocol):
+    """What the rule needs of an evaluator: the simulated spectra of parameter points."""
+
+    def spectra(self, W: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class SummaryMisfitTest:
+    """The summaries the fit does not use, and their covariance (module docstring).
+
+    Args:
+        directions: (C x F x k) B, orthogonal to the Jacobian's columns.
+        covariance: (k x k) sample covariance of one run's B-summaries over the pilot runs.
+        runs: M, the pilot runs the covariance came from (M > k + 1).
+        n_measured: ν.
+        n_simulated: μ.
+
+    Raises:
+        ValueError: shapes that disagree, non-finite values, a covariance not positive
+            definite, or M ≤ k + 1, naming the field.
+    """
+
+    directions: np.ndarray
+    covariance: np.ndarray
+    runs: int
+    n_measured: int
+    n_simulated: int
+
+    def __post_init__(self) -> None:
+        b = np.array(self.directions, dtype=np.float64)
+        c = np.array(self.covariance, dtype=np.float64)
+        if b.ndim != 3 or not np.all(np.isfinite(b)):
+            raise ValueError(f"directions: shape {b.shape}, expected finite (C x F x k)")
+        k = b.shape[-1]
+        if c.shape != (k, k) or not np.all(np.isfinite(c)):
+            raise ValueError(f"covariance: shape {c.shape}, expected finite ({k} x {k})")
+        try:
+            np.linalg.cholesky(c)
+        except np.linalg.LinAlgError as error:
+            raise ValueError("covariance: not positive definite") from error
+        if self.runs <= k + 1:
+            raise ValueError(f"runs: {self.runs}; expected more than k + 1 = {k + 1}")
+        for name in ("n_measured", "n_simulated"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}: {getattr(self, name)!r} must be >= 1")
+        b.setflags(write=False)
+        c.setflags(write=False)
+        object.__setattr__(self, "directions", b)
+        object.__setattr__(self, "covariance", c)
+
+    @property
+    def dof(self) -> int:
+        """k, the number of summaries tested."""
+        return int(self.directions.shape[-1])
+
+    @property
+    def scale(self) -> float:
+        """κ = 1/ν + 1/μ."""
+        return 1.0 / self.n_measured + 1.0 / self.n_simulated
+
+
+def band_group_directions(channels: int, bands: int, groups: int) -> np.ndarray:
+    """(C·F x C·groups) G: per channel, the indicator of each of ``groups`` contiguous
+    groups of bands (their sizes differ by at most one)."""
+    edges = np.linspace(0, bands, groups + 1).round().astype(int)
+    g = np.zeros((channels, bands, channels, groups))
+    for c in range(channels):
+        for k in range(groups):
+            g[c, edges[k] : edges[k + 1], c, k] = 1.0
+    return g.reshape(channels * bands, channels * groups)
+
+
+def summary_misfit_test(
+    pilot: np.ndarray,
+    jacobian: np.ndarray,
+    n_measured: int,
+    n_simulated: int,
+    band_groups: int = BAND_GROUPS,
+) -> SummaryMisfitTest | None:
+    """The test from the pilot's M runs and the Jacobian at the pilot point.
+
+    Args:
+        pilot: (M x C x F) log-amplitude spectra of the pilot runs (one point, fresh tracks,
+            sensor noise), as for :func:`.track_statistics.track_statistics_error`.
+        jacobian: (q x C x F) derivative of the simulated mean spectrum (any scaling).
+        n_measured: ν.
+        n_simulated: μ.
+        band_groups: groups of bands per channel; fewer are used when M is too small for
+            C x groups summaries (k ≤ (M − 1) / 2, and no more groups than bands).
+
+    Returns:
+        The test, or None when even one group per channel leaves too few pilot runs, or
+        the summaries are degenerate (their covariance is not positive definite).
+    """
+    y = np.asarray(pilot, dtype=np.float64)
+    j = np.asarray(jacobian, dtype=np.float64)
+    m, c, f = y.shape
+    groups = min(band_groups, f)
+    while groups >= 1 and c * groups > (m - 1) // 2:
+        groups -= 1
+    if groups < 1:
+        return None
+    g = band_group_directions(c, f, groups)
+    with one_blas_thread():  # the same bits under any load (README, "Reproducible")
+        basis, _ = np.linalg.qr(j.reshape(j.shape[0], -1).T)  # p x q, orthonormal
+        directions = g - basis @ (basis.T @ g)
+        flat = y.reshape(m, -1)
+        summaries = (flat - flat.mean(axis=0)) @ directions
+        covariance = summaries.T @ summaries / (m - 1)
+    try:
+        return SummaryMisfitTest(
+            directions.reshape(c, f, -1), covariance, m, n_measured, n_simulated
+        )
+    except ValueError:
+        return None
+
+
+def summary_misfit(
+    measured: np.ndarray, simulated: np.ndarray, test: SummaryMisfitTest
+) -> tuple[float, float]:
+    """Hotelling's T² of the measured against the simulated spectra, and its p-value.
+
+    Args:
+        measured: (ν x C x F) measured log-amplitude spectra.
+        simulated: (μ x C x F) simulated spectra at the fitted point (the model's tracks).
+        test: the summaries and their covariance.
+
+    Returns:
+        ``(t2, p)``; NaN, NaN when a spectrum is not finite.
+
+    Raises:
+        ValueError: shapes other than the test's.
+    """
+    y = np.asarray(measured, dtype=np.float64)
+    h = np.asarray(simulated, dtype=np.float64)
+    c, f, k = test.directions.shape
+    if y.shape != (test.n_measured, c, f) or h.shape != (test.n_simulated, c, f):
+        raise ValueError(
+            f"measured: shape {y.shape}, simulated: shape {h.shape}; expected "
+            f"({test.n_measured} x {c} x {f}) and ({test.n_simulated} x {c} x {f})"
+        )
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(h))):
+        return math.nan, math.nan
+    with one_blas_thread():
+        r = (y.mean(axis=0) - h.mean(axis=0)).reshape(-1) @ test.directions.reshape(-1, k)
+        t2 = float(r @ np.linalg.solve(test.scale * test.covariance, r))
+    n = test.runs
+    statistic = (n - k) / (k * (n - 1)) * t2
+    return t2, float(stats.f.sf(statistic, k, n - k))
+
+
+def summary_misfit_reason(t2: float, p: float, dof: int) -> Reason | None:
+    """``below_expected_fit`` when ``p`` < :data:`P_LIMIT`; None otherwise or when NaN."""
+    if not math.isfinite(p) or p >= P_LIMIT:
+        return None
+    return {
+        "code": "below_expected_fit",
+        "message": (
+            f"the model misses something in the data: {dof} channel and band-group "
+            "summaries that no change of the parameters moves disagree with the simulation "
+            f"beyond the track and sensor scatter (Hotelling T^2 = {t2:.1f}, p = {p:.1e}, "
+            f"limit {P_LIMIT:g})"
+        ),
+        "summary_misfit_p": float(p),
+    }
+
+
+def with_summary_misfit(
+    result: CalibrationResult,
+    evaluator: SpectraSource,
+    measured: np.ndarray,
+    test: SummaryMisfitTest,
+) -> CalibrationResult:
+    """``result`` with the test at its best evaluated point in the verdict.
+
+    The spectra at the best point come from the evaluator (a study's store: no new
+    simulation). ``evidence`` gets ``summary_misfit_t2``, ``summary_misfit_p`` and
+    ``summary_misfit_dof`` (None when the spectra there failed); a result that was trusted
+    and whose p is below :data:`P_LIMIT` becomes ``not_trusted`` (``below_expected_fit``).
+    """
+    reliability = result.reliability
+    finite = np.isfinite(result.y)
+    if reliability is None or not np.any(finite):
+        return result
+    best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
+    simulated = np.asarray(evaluator.spectra(best[None]))[0]
+    t2, p = summary_misfit(measured, simulated, test)
+    evidence = dict(reliability.evidence) | {
+        "summary_misfit_t2": None if math.isnan(t2) else t2,
+        "summary_misfit_p": None if math.isnan(p) else p,
+        "summary_misfit_dof": test.dof,
+    }
+    reason = summary_misfit_reason(t2, p, test.dof) if reliability.trusted else None
+    return dataclasses.replace(result, reliability=reliability.with_rule(reason, evidence))
