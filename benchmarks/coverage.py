@@ -141,6 +141,7 @@ from susp_bo.calibration.loop import (  # noqa: E402
     IterationReport,
     calibrate,
 )
+from susp_bo.calibration.summary_misfit import with_summary_misfit  # noqa: E402
 from susp_bo.commands.demo import DEMO_RIG  # noqa: E402
 from susp_bo.rig.spec import load_rig_spec  # noqa: E402
 
@@ -215,6 +216,9 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
     )
     verdict_before = None if result.reliability is None else result.reliability.verdict
     result = with_lack_of_fit(result, problem, problem.measured)
+    test = getattr(problem.error, "misfit", None)
+    if test is not None:  # the summary likelihood's goodness of fit, as calibrate applies it
+        result = with_summary_misfit(result, problem, problem.measured, test)
     draws = result.draws.reshape(-1, len(names))
     truth_log_l = problem.log_l(truth)
     # what B expects at the truth (recorded for the models whose expectation bounds the

@@ -21,7 +21,7 @@ against the rig's channels and band, the output folder and its store;
 3. the four steps run (:func:`susp_bo.calibration.loop.calibrate`) with every
    simulator evaluation going through the evaluation store and the executor (with
    ``track_statistics``, the pilot's fit of the summaries is one point of the design,
-   :func:`pilot_start`);
+   a warm start's too, :func:`loop_start`);
 4. ``result.json``, the config used, the figures and the log are written, with
    the reliability verdict (:mod:`susp_bo.calibration.reliability`) in
    ``result.json["reliability"]`` and at the end of the log (the commands print its
@@ -212,6 +212,20 @@ def pilot_start(study: PreparedStudy) -> np.ndarray | None:
     return None if study.pilot is None else pilot_point(study.pilot, study.bounds)[None, :]
 
 
+def loop_start(
+    study: PreparedStudy, design: np.ndarray | None
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``(design, initial_points)`` for :func:`.loop.calibrate`: the pilot's fit
+    (:func:`pilot_start`) in place of one space-filling point, or, when a ``design`` is
+    given (a monitoring campaign's warm start, centred on the previous posterior), as one
+    more point after it (session 36: a part that changed more than the warm design's box
+    allows is still in the summaries' basin). Without a pilot, ``(design, None)``."""
+    start = pilot_start(study)
+    if design is None or start is None:
+        return design, start
+    return np.vstack([np.asarray(design, dtype=np.float64), start]), None
+
+
 def _logger(out: Path) -> logging.Logger:
     logger = logging.getLogger(f"susp_bo.study.{out.resolve()}")
     logger.setLevel(logging.INFO)
@@ -397,6 +411,7 @@ def run_study(
             settings = calibration_settings(config)
             if local_after_design and settings.local_search:
                 settings = dataclasses.replace(settings, max_ego_fraction=0.0)
+            start_design, start_points = loop_start(study, design)
             result = calibrate(
                 evaluator,
                 study.bounds,
@@ -405,8 +420,8 @@ def run_study(
                 progress=progress,
                 on_iteration=report,
                 expected_at_truth=expected_log_likelihood_at_truth(study),
-                design=design,
-                initial_points=pilot_start(study) if design is None else None,
+                design=start_design,
+                initial_points=start_points,
             )
             # calibrate weighs the lack of fit between the runs (the evaluator exposes the
             # spectra and the measured runs); its Gauss–Newton points (if any) are stored

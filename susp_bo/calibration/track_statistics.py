@@ -36,13 +36,16 @@ the simulated spectra, as the other models are, and the loop (surrogate, local p
 MCMC, verdict) runs on it unchanged; :func:`track_statistics_expected_log_likelihood`
 gives the log L the model expects at the truth (``below_expected_fit``).
 
-What it cannot see. With q summaries for q parameters the fit makes d = 0 at an interior
-optimum, whatever the data, so the best log L is the expectation + q/2 there: B has no
-goodness-of-fit power of its own, and ``below_expected_fit`` fires only on a search that
-stopped short of the optimum, never on a model error (second review, session 33: a model
-error of half a bin's track scatter in a linear-Gaussian toy gave z = −12 with nothing
-flagged). What is left to see a model error is the lack of fit between runs
-(:mod:`.lack_of_fit`) and ``at_bound``: at the exact summary fit on the linearised rig
+What its log L cannot see. With q summaries for q parameters the fit makes d = 0 at an
+interior optimum, whatever the data, so the best log L is the expectation + q/2 there: B
+has no goodness-of-fit power of its own, and ``below_expected_fit`` from log L fires only
+on a search that stopped short of the optimum, never on a model error (second review,
+session 33: a model error of half a bin's track scatter in a linear-Gaussian toy gave
+z = −12 with nothing flagged). Since session 36 the error carries a test of the summaries
+its fit does not use (:mod:`.summary_misfit`, built by :func:`track_statistics_error` from
+the same pilot), which the verdict applies: it flagged all 18 model-error fits below,
+none of 6 exact ones. Before it, what was left to see a model error was the lack of fit
+between runs (:mod:`.lack_of_fit`) and ``at_bound``: at the exact summary fit on the linearised rig
 (``python benchmarks/track_statistics_misfit.py --experiments 6 --seed 34``) a carbody
 bending mode gave F 8.4–14.1 (6 of 6 above the limit), an air-spring reservoir F 1.0–4.4
 with every fit at a bound, a conicity of 0.15 against 0.10 F 1.2–1.7 — one of its six fits

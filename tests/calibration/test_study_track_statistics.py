@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from susp_bo.calibration.study import loop_start
 from susp_bo.calibration.study_inputs import StudyError
 from susp_bo.calibration.study_track_statistics import (
     TrackStatisticsPlan,
@@ -19,6 +21,7 @@ from susp_bo.calibration.study_track_statistics import (
     plan_for,
     realization_length_m,
 )
+from susp_bo.calibration.track_statistics_pilot import PilotRecord
 from susp_bo.data.synthetic import synthesize_runs
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.track import TrackGeometry
@@ -137,3 +140,22 @@ def test_the_realizations_are_as_long_as_the_runs_need_with_or_without_geometry(
             np.testing.assert_array_equal(a.geometry.stacked(), b.geometry.stacked())
             assert a.geometry.spacing_m == b.geometry.spacing_m == 0.25
             assert a.geometry.length_m == runs[0].geometry.length_m == 780.0
+
+
+def test_the_loop_starts_from_the_pilots_fit_cold_or_warm() -> None:
+    """Cold: the fit replaces one space-filling point (``initial_points``). Warm (a
+    monitoring campaign's design, centred on the previous posterior): the fit is one more
+    point after that design, which is kept whole. Without a pilot nothing is added."""
+    bounds = np.array([[1.0, 10.0], [3.0, 30.0]])
+    record = PilotRecord(first_fit=(0.25, 0.5), simulations=0, shrinkage=0.1)
+    study = SimpleNamespace(pilot=record, bounds=bounds)
+    fit = np.array([[1.5, 20.0]])  # the fit in physical units
+    design, points = loop_start(study, None)
+    assert design is None and np.array_equal(points, fit)
+    warm = np.array([[2.0, 15.0], [2.1, 16.0], [1.2, 28.0]])
+    design, points = loop_start(study, warm)
+    assert points is None and np.array_equal(design, np.vstack([warm, fit]))
+    cold = SimpleNamespace(pilot=None, bounds=bounds)
+    assert loop_start(cold, None) == (None, None)
+    design, points = loop_start(cold, warm)
+    assert design is warm and points is None
