@@ -135,13 +135,12 @@ from exact_laplace import laplace_reference, reference_experiment  # noqa: E402
 from fast_path import FastPathProblem, Options, demo_settings, sbc_draw  # noqa: E402
 from sbc_summary import aggregate, rank_figure, score_draws  # noqa: E402
 
-from susp_bo.calibration.lack_of_fit import with_lack_of_fit  # noqa: E402
+from susp_bo.calibration.fit_rules import with_fit_rules  # noqa: E402
 from susp_bo.calibration.likelihood import expected_log_likelihood_at_truth  # noqa: E402
 from susp_bo.calibration.loop import (  # noqa: E402
     IterationReport,
     calibrate,
 )
-from susp_bo.calibration.summary_misfit import with_summary_misfit  # noqa: E402
 from susp_bo.commands.demo import DEMO_RIG  # noqa: E402
 from susp_bo.rig.spec import load_rig_spec  # noqa: E402
 
@@ -215,10 +214,8 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         else (bounds[0] + np.asarray(problem.pilot.first_fit) * (bounds[1] - bounds[0]))[None, :],
     )
     verdict_before = None if result.reliability is None else result.reliability.verdict
-    result = with_lack_of_fit(result, problem, problem.measured)
-    test = getattr(problem.error, "misfit", None)
-    if test is not None:  # the summary likelihood's goodness of fit, as calibrate applies it
-        result = with_summary_misfit(result, problem, problem.measured, test)
+    # the lack of fit and (summary likelihood) its goodness of fit, as calibrate applies them
+    result = with_fit_rules(result, problem, problem.measured)
     draws = result.draws.reshape(-1, len(names))
     truth_log_l = problem.log_l(truth)
     # what B expects at the truth (recorded for the models whose expectation bounds the

@@ -34,7 +34,7 @@ unpaired B, whether the simulated runs reproduce the measured ones at all
 and the lack of fit between ν ≥ 2 runs (:func:`.lack_of_fit.with_lack_of_fit`: a model
 that misses an effect every run shows; with one run it is recorded as not checked) and,
 under the summary likelihood, the summaries its fit does not use
-(:func:`.summary_misfit.with_summary_misfit`), whoever calls — a study, ``susp-bo
+(:func:`.fit_rules.with_summary_misfit`), whoever calls — a study, ``susp-bo
 diagnose``'s recalibration or the Python API (session 27: before, only a study applied it).
 
 Failed evaluations (``evaluate`` returns NaN or −inf) are kept as NaN in the result;
@@ -72,13 +72,13 @@ from susp_bo.calibration.design import (
     to_unit,
 )
 from susp_bo.calibration.exploration_audit import audit_size, run_audit
+from susp_bo.calibration.fit_rules import with_fit_rules
 from susp_bo.calibration.iteration_record import record_iteration
 from susp_bo.calibration.kernel_advice import (
     additive_kernel_gain,
     needs_kernel_advice,
     with_kernel_gain,
 )
-from susp_bo.calibration.lack_of_fit import with_lack_of_fit
 from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator
 from susp_bo.calibration.loop_phases import run_basin_phase, run_local_phase
 from susp_bo.calibration.loop_step import (
@@ -108,7 +108,6 @@ from susp_bo.calibration.sampling import (
     surrogate_log_likelihood,
 )
 from susp_bo.calibration.settings import CalibrationSettings
-from susp_bo.calibration.summary_misfit import SummaryMisfitTest, with_summary_misfit
 from susp_bo.calibration.surrogate_check import SurrogateCheck
 from susp_bo.calibration.track_match import with_track_match
 from susp_bo.calibration.trust_region import box_edge, held_points, hold_points, to_global_unit
@@ -494,11 +493,8 @@ def calibrate(
     spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator
     if callable(spectra) and np.ndim(measured) == 3 and len(measured) >= 1:
         result = with_track_match(result, evaluate, np.asarray(measured))
-        if lack_of_fit:
-            result = with_lack_of_fit(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
-            test = getattr(getattr(evaluate, "error", None), "misfit", None)
-            if isinstance(test, SummaryMisfitTest):  # the summary likelihood's own check
-                result = with_summary_misfit(result, evaluate, np.asarray(measured), test)  # type: ignore[arg-type]
+        if lack_of_fit:  # and the summary likelihood's goodness of fit
+            result = with_fit_rules(result, evaluate, np.asarray(measured))  # type: ignore[arg-type]
     if result.reliability is not None:
         logger.info(result.reliability.sentence)
     return result

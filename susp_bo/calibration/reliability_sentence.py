@@ -148,6 +148,20 @@ def _lack_of_fit_unchecked(evidence: Mapping[str, Any]) -> bool:
     return "lack_of_fit_ratio" in evidence and evidence["lack_of_fit_ratio"] is None
 
 
+_UNTESTED_SUMMARIES = (
+    "the summaries the fit does not use could not be tested (summary_misfit_p null: too "
+    "few pilot runs for one band group per channel, or spectra that failed at the best "
+    "point), so a model error the summary likelihood absorbs is neither seen nor ruled out"
+)
+"""The trusted sentence's caveat when :func:`.fit_rules.with_summary_misfit` was applied but
+could not compute its p."""
+
+
+def _summaries_untested(evidence: Mapping[str, Any]) -> bool:
+    """A summary-likelihood result whose goodness of fit was looked for but not computed."""
+    return "summary_misfit_p" in evidence and evidence["summary_misfit_p"] is None
+
+
 def _caveats(evidence: Mapping[str, Any]) -> str:
     """What a trusted result's rules could not look at, as the sentence's tail ("" when
     every rule could)."""
@@ -156,6 +170,7 @@ def _caveats(evidence: Mapping[str, Any]) -> str:
         for text, applies in (
             (_UNBOUNDED_BOX_MASS, _box_mass_unknown(evidence)),
             (_UNCHECKED_LACK_OF_FIT, _lack_of_fit_unchecked(evidence)),
+            (_UNTESTED_SUMMARIES, _summaries_untested(evidence)),
         )
         if applies
     ]

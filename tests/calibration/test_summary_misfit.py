@@ -15,57 +15,34 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from susp_bo.calibration.loop import calibrate
-from susp_bo.calibration.reliability_sentence import advice_code, sentence
+from susp_bo.calibration.fit_rules import summary_misfit_reason
 from susp_bo.calibration.summary_misfit import (
     BAND_GROUPS,
     P_LIMIT,
     SummaryMisfitTest,
     band_group_directions,
     summary_misfit,
-    summary_misfit_reason,
     summary_misfit_test,
 )
 from susp_bo.calibration.track_statistics import (
     track_statistics_error,
     track_statistics_log_likelihood,
 )
-from tests.calibration.conftest import Q1_SETTINGS
-
-C, F, Q = 3, 12, 2
-NU, MU = 3, 3
-M = 100
-
-
-def _toy(seed: int = 0):
-    """(m0, G, chol Σ): two shared track factors plus 0.05 independent noise per bin."""
-    rng = np.random.default_rng(seed)
-    p = C * F
-    m0 = rng.normal(0.0, 1.0, p)
-    g = rng.normal(0.0, 0.05, (p, Q))
-    loading = 3.0 * g @ rng.standard_normal((Q, 2)) + 0.05 * rng.standard_normal((p, 2))
-    sigma = loading @ loading.T + 0.05**2 * np.eye(p)
-    return m0, g, np.linalg.cholesky(sigma)
+from tests.calibration.summary_toy import (
+    MU,
+    NU,
+    C,
+    F,
+    M,
+    Q,
+    effect_of_a_missing_mode,
+    toy,
+    toy_runs,
+)
 
 
-def _runs(rng, m0, g, chol, w, n, effect=None):
-    """(n x C x F) runs at w (plus a fixed ``effect`` (p,) the model does not have)."""
-    e = rng.standard_normal((n, len(m0))) @ chol.T
-    extra = 0.0 if effect is None else effect
-    return (m0 + g @ w + extra + e).reshape(n, C, F)
-
-
-def _effect(chol: np.ndarray) -> np.ndarray:
-    """(C x F) a rise of the last channel's four highest bands by 2 track sd per bin (a
-    mode the model lacks)."""
-    sd = np.sqrt(np.diag(chol @ chol.T)).reshape(C, F)
-    effect = np.zeros((C, F))
-    effect[-1, -4:] = 2.0 * sd[-1, -4:]
-    return effect
-
-
-def _test(rng, m0, g, chol, runs=M):
-    pilot = _runs(rng, m0, g, chol, np.zeros(Q), runs)
+def _test(rng, m0, g, chol, count=M):
+    pilot = toy_runs(rng, m0, g, chol, np.zeros(Q), count)
     test = summary_misfit_test(pilot, g.T.reshape(Q, C, F), NU, MU)
     assert test is not None
     return test
@@ -82,14 +59,14 @@ def test_t2_follows_hotellings_distribution_for_data_from_the_model():
     """600 data sets, each with its own pilot, truth and fitted point anywhere (the test is
     blind to the parameters): the p-values are uniform. Taking C_B as known (χ²_k instead
     of Hotelling) or forgetting the simulated tracks' share of κ would not be."""
-    m0, g, chol = _toy()
+    m0, g, chol = toy()
     rng = np.random.default_rng(7)
     p_values, chi2_p, no_mu_p = [], [], []
     for _ in range(600):
         test = _test(rng, m0, g, chol)
         truth, fitted = rng.uniform(-1, 1, Q), rng.uniform(-3, 3, Q)
-        measured = _runs(rng, m0, g, chol, truth, NU)
-        simulated = _runs(rng, m0, g, chol, fitted, MU)
+        measured = toy_runs(rng, m0, g, chol, truth, NU)
+        simulated = toy_runs(rng, m0, g, chol, fitted, MU)
         t2, p = summary_misfit(measured, simulated, test)
         p_values.append(p)
         chi2_p.append(stats.chi2.sf(t2, test.dof))
@@ -104,11 +81,11 @@ def test_t2_follows_hotellings_distribution_for_data_from_the_model():
 def test_data_that_move_as_a_parameter_does_leave_t2_unchanged():
     """B is orthogonal to the Jacobian: what any change of w does to the spectra, the
     test does not see (that part belongs to the summary log L)."""
-    m0, g, chol = _toy()
+    m0, g, chol = toy()
     rng = np.random.default_rng(3)
     test = _test(rng, m0, g, chol)
-    measured = _runs(rng, m0, g, chol, np.zeros(Q), NU)
-    simulated = _runs(rng, m0, g, chol, np.zeros(Q), MU)
+    measured = toy_runs(rng, m0, g, chol, np.zeros(Q), NU)
+    simulated = toy_runs(rng, m0, g, chol, np.zeros(Q), MU)
     shift = (g @ np.array([40.0, -25.0])).reshape(C, F)  # far beyond the posterior
     base = summary_misfit(measured, simulated, test)
     moved = summary_misfit(measured + shift, simulated, test)
@@ -120,18 +97,18 @@ def test_an_effect_the_parameters_cannot_reproduce_is_found_where_log_l_sees_not
     per bin: at the summaries' exact fit log L is as high as at the truth for data from the
     model (it has no goodness-of-fit power: q summaries, q parameters), while p falls far
     below the limit; the same data without the effect pass."""
-    m0, g, chol = _toy()
-    effect = _effect(chol)
+    m0, g, chol = toy()
+    effect = effect_of_a_missing_mode(chol)
     rng = np.random.default_rng(11)
     error = track_statistics_error(
-        _runs(rng, m0, g, chol, np.zeros(Q), M), g.T.reshape(Q, C, F), NU, MU
+        toy_runs(rng, m0, g, chol, np.zeros(Q), M), g.T.reshape(Q, C, F), NU, MU
     )
     assert error.misfit is not None  # the error carries its test
     truth = np.array([0.3, -0.2])
     tracks = rng.standard_normal((MU, C * F)) @ chol.T  # the model's μ track realizations
     a = error.weights.reshape(-1, Q)
     for with_effect, fails in ((False, False), (True, True)):
-        measured = _runs(rng, m0, g, chol, truth, NU, effect.ravel() if with_effect else None)
+        measured = toy_runs(rng, m0, g, chol, truth, NU, effect.ravel() if with_effect else None)
         # the exact fit of the q summaries: Aᵀ (ȳ − m0 − ē − G w) = 0
         residual = measured.mean(axis=0).ravel() - m0 - tracks.mean(axis=0)
         w = np.linalg.solve(a.T @ g, a.T @ residual)
@@ -148,19 +125,19 @@ def test_an_effect_the_parameters_cannot_reproduce_is_found_where_log_l_sees_not
 
 
 def test_fewer_groups_when_the_pilot_is_small_and_none_when_too_small():
-    m0, g, chol = _toy()
+    m0, g, chol = toy()
     rng = np.random.default_rng(5)
     jac = g.T.reshape(Q, C, F)
     sizes = {}
-    for runs in (100, 19, 13, 6):
-        test = summary_misfit_test(_runs(rng, m0, g, chol, np.zeros(Q), runs), jac, NU, MU)
-        sizes[runs] = None if test is None else test.dof
+    for count in (100, 19, 13, 6):
+        test = summary_misfit_test(toy_runs(rng, m0, g, chol, np.zeros(Q), count), jac, NU, MU)
+        sizes[count] = None if test is None else test.dof
     # k = C x groups must stay <= (M − 1) // 2: 3 groups (9), then 3 (9), 2 (6), none
     assert sizes == {100: 9, 19: 9, 13: 6, 6: None}
 
 
 def test_bad_tests_and_shapes_are_refused_naming_the_field():
-    m0, g, chol = _toy()
+    m0, g, chol = toy()
     test = _test(np.random.default_rng(1), m0, g, chol)
     with pytest.raises(ValueError, match="covariance: not positive definite"):
         SummaryMisfitTest(test.directions, -test.covariance, M, NU, MU)
@@ -173,56 +150,3 @@ def test_bad_tests_and_shapes_are_refused_naming_the_field():
     nan = np.full((NU, C, F), np.nan)
     assert all(math.isnan(v) for v in summary_misfit(nan, np.zeros((MU, C, F)), test))
     assert summary_misfit_reason(math.nan, math.nan, test.dof) is None
-
-
-class _ToyEvaluator:
-    """The summary log L of the toy over w in one coordinate (the other at its truth),
-    with the spectra and measured runs a study's evaluator exposes."""
-
-    def __init__(self, effect: np.ndarray | None) -> None:
-        m0, g, chol = _toy()
-        rng = np.random.default_rng(21)
-        self.m0, self.g = m0, g
-        self.error = track_statistics_error(
-            _runs(rng, m0, g, chol, np.zeros(Q), M), g.T.reshape(Q, C, F), NU, MU
-        )
-        self.tracks = rng.standard_normal((MU, C * F)) @ chol.T
-        self.measured = _runs(rng, m0, g, chol, np.array([0.4, 0.0]), NU, effect)
-
-    def spectra(self, W: np.ndarray) -> np.ndarray:
-        w = np.column_stack([np.asarray(W)[:, 0], np.zeros(len(W))])
-        return (self.m0 + w @ self.g.T)[:, None, :].reshape(len(W), 1, C, F) + self.tracks.reshape(
-            1, MU, C, F
-        )
-
-    def __call__(self, W: np.ndarray) -> np.ndarray:
-        return np.asarray(
-            track_statistics_log_likelihood(self.measured, self.spectra(W), self.error)
-        )
-
-
-@pytest.mark.parametrize("with_effect", [False, True])
-def test_the_loop_applies_the_test_and_refuses_a_model_that_misses_an_effect(with_effect):
-    """Through :func:`calibrate` (q = 1): with the effect the verdict is ``not_trusted``
-    (``below_expected_fit``) and its advice is the summary model's own (diagnose cannot
-    name an effect without measured tracks); without, the evidence holds a p above the
-    limit and the rule leaves the verdict alone."""
-    effect = _effect(_toy()[2])
-    evaluator = _ToyEvaluator(effect.ravel() if with_effect else None)
-    bounds = np.array([[-2.0], [2.0]])
-    result = calibrate(evaluator, bounds, ["w0"], Q1_SETTINGS, progress=False)
-    evidence = result.reliability.evidence
-    assert evidence["summary_misfit_dof"] == C * BAND_GROUPS
-    if with_effect:
-        assert evidence["summary_misfit_p"] < P_LIMIT
-        assert result.reliability.codes == ("below_expected_fit",)
-        reasons = result.reliability.reasons
-        assert advice_code(reasons, evidence, "command_line") == "summary_misfit"
-        words = sentence(reasons, evidence, "command_line")
-        assert "channel and band-group summaries" in words and "paired" in words
-    else:
-        assert evidence["summary_misfit_p"] > P_LIMIT
-        assert "below_expected_fit" not in result.reliability.codes
-    # lack_of_fit=False is the verdict of the other rules alone: no test either
-    plain = calibrate(evaluator, bounds, ["w0"], Q1_SETTINGS, progress=False, lack_of_fit=False)
-    assert "summary_misfit_p" not in plain.reliability.evidence
