@@ -12,22 +12,25 @@ NU, MU = 3, 3
 M = 100
 
 
-def toy(seed: int = 0):
-    """(m0, G, chol Σ): two shared track factors plus 0.05 independent noise per bin."""
+def toy(seed: int = 0, channels: int = C, bands: int = F, q: int = Q):
+    """(m0 (p,), G (p x q), chol Σ (p x p)), p = channels x bands: two shared track factors
+    (they move the spectra partly as the parameters do: what makes bins taken as
+    independent overconfident) plus 0.05 independent noise per bin."""
     rng = np.random.default_rng(seed)
-    p = C * F
+    p = channels * bands
     m0 = rng.normal(0.0, 1.0, p)
-    g = rng.normal(0.0, 0.05, (p, Q))
-    loading = 3.0 * g @ rng.standard_normal((Q, 2)) + 0.05 * rng.standard_normal((p, 2))
+    g = rng.normal(0.0, 0.05, (p, q))
+    loading = 3.0 * g @ rng.standard_normal((q, 2)) + 0.05 * rng.standard_normal((p, 2))
     sigma = loading @ loading.T + 0.05**2 * np.eye(p)
     return m0, g, np.linalg.cholesky(sigma)
 
 
-def toy_runs(rng, m0, g, chol, w, n, effect=None):
-    """(n x C x F) runs at w (plus a fixed ``effect`` (p,) the model does not have)."""
+def toy_runs(rng, m0, g, chol, w, n, effect=None, shape=(C, F)):
+    """(n x channels x bands) runs at w (plus a fixed ``effect`` (p,) the model does not
+    have), ``shape`` = (channels, bands)."""
     e = rng.standard_normal((n, len(m0))) @ chol.T
     extra = 0.0 if effect is None else effect
-    return (m0 + g @ w + extra + e).reshape(n, C, F)
+    return (m0 + g @ w + extra + e).reshape(n, *shape)
 
 
 def effect_of_a_missing_mode(chol: np.ndarray) -> np.ndarray:

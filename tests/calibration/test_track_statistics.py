@@ -25,28 +25,20 @@ from susp_bo.calibration.track_statistics import (
     track_statistics_expected_log_likelihood,
     track_statistics_log_likelihood,
 )
+from tests.calibration.summary_toy import toy, toy_runs
 
 C, F, Q = 3, 20, 2
 NU, MU = 3, 3
 
 
 def _toy(seed: int = 0):
-    """(m0, G, chol Σ): two shared factors plus 0.05 independent noise per bin."""
-    rng = np.random.default_rng(seed)
-    p = C * F
-    m0 = rng.normal(0.0, 1.0, p)
-    g = rng.normal(0.0, 0.05, (p, Q))
-    # the track factors move the spectra partly as the parameters do: that is what makes
-    # bins taken as independent overconfident
-    loading = 3.0 * g @ rng.standard_normal((Q, 2)) + 0.05 * rng.standard_normal((p, 2))
-    sigma = loading @ loading.T + 0.05**2 * np.eye(p)
-    return m0, g, np.linalg.cholesky(sigma)
+    """(m0, G, chol Σ) of :func:`tests.calibration.summary_toy.toy` on C x F bins."""
+    return toy(seed, C, F, Q)
 
 
 def _runs(rng, m0, g, chol, w, n):
     """(n x C x F) runs at w."""
-    e = rng.standard_normal((n, len(m0))) @ chol.T
-    return (m0 + g @ w + e).reshape(n, C, F)
+    return toy_runs(rng, m0, g, chol, w, n, shape=(C, F))
 
 
 def _error(rng, m0, g, chol, pilot_runs=200):
