@@ -27,22 +27,31 @@ from susp_bo.calibration.lack_of_fit import with_lack_of_fit
 from susp_bo.calibration.local_search import SpectraEvaluator
 from susp_bo.calibration.reliability_rules import Reason
 from susp_bo.calibration.result import CalibrationResult
-from susp_bo.calibration.summary_misfit import P_LIMIT, SummaryMisfitTest, summary_misfit
+from susp_bo.calibration.summary_misfit import (
+    P_LIMIT,
+    SummaryMisfitTest,
+    summary_misfit,
+    summary_residuals_z,
+)
 from susp_bo.calibration.trust_region import best_point
 
 
-def summary_misfit_reason(t2: float, p: float, dof: int) -> Reason | None:
+def summary_misfit_reason(
+    t2: float, p: float, dof: int, worst: tuple[str, float] | None = None
+) -> Reason | None:
     """``below_expected_fit`` when ``p`` < :data:`.summary_misfit.P_LIMIT`; None otherwise
-    or when NaN."""
+    or when NaN. ``worst``: the summary that disagrees most and its z, named in the
+    message (where to look)."""
     if not math.isfinite(p) or p >= P_LIMIT:
         return None
+    where = "" if worst is None else f"; most in {worst[0]}, z = {worst[1]:+.1f}"
     return {
         "code": "below_expected_fit",
         "message": (
             f"the model misses something in the data: {dof} channel and band-group "
             "summaries that no change of the parameters moves (to first order) disagree "
             "with the simulation beyond the track and sensor scatter (Hotelling T^2 = "
-            f"{t2:.1f}, p = {p:.1e}, limit {P_LIMIT:g})"
+            f"{t2:.1f}, p = {p:.1e}, limit {P_LIMIT:g}{where})"
         ),
         "summary_misfit_p": float(p),
     }
@@ -58,7 +67,9 @@ def with_summary_misfit(
 
     The spectra at the best point come from the evaluator (a study's store: no new
     simulation), (μ x C x F) on the model's tracks. ``evidence`` gets
-    ``summary_misfit_t2``, ``summary_misfit_p`` and ``summary_misfit_dof`` — all null when
+    ``summary_misfit_t2``, ``summary_misfit_p``, ``summary_misfit_dof`` and
+    ``summary_misfit_worst`` (the summary whose residual is largest in its own sd, and
+    that z: where the data and the model disagree most) — all null when
     ``test`` is None (a pilot too small for one band group per channel), p and T² null
     when the spectra there failed; a trusted sentence then says the test was not made. A
     result that was trusted and whose p is below :data:`.summary_misfit.P_LIMIT` becomes
@@ -74,6 +85,7 @@ def with_summary_misfit(
     if reliability is None or not np.any(np.isfinite(result.y)):
         return result
     t2 = p = math.nan
+    worst: tuple[str, float] | None = None
     if test is not None:
         best = np.asarray(best_point(result.X, result.y), dtype=np.float64)
         simulated = np.asarray(evaluator.spectra(best[None]))[0]
@@ -81,14 +93,18 @@ def with_summary_misfit(
         y = np.asarray(measured, dtype=np.float64)
         if y.shape == (test.n_measured, c, f) and simulated.shape == (test.n_simulated, c, f):
             t2, p = summary_misfit(y, simulated, test)
+            if math.isfinite(p):
+                z = summary_residuals_z(y, simulated, test)
+                j = int(np.argmax(np.abs(z)))
+                worst = (test.label(j), float(z[j]))
     evidence: dict[str, Any] = dict(reliability.evidence) | {
         "summary_misfit_t2": None if math.isnan(t2) else t2,
         "summary_misfit_p": None if math.isnan(p) else p,
         "summary_misfit_dof": None if test is None else test.dof,
+        "summary_misfit_worst": None if worst is None else {"summary": worst[0], "z": worst[1]},
     }
-    reason = (
-        summary_misfit_reason(t2, p, test.dof) if reliability.trusted and test is not None else None
-    )
+    trusted = reliability.trusted and test is not None
+    reason = summary_misfit_reason(t2, p, test.dof, worst) if trusted else None
     return dataclasses.replace(result, reliability=reliability.with_rule(reason, evidence))
 
 

@@ -39,6 +39,7 @@ from susp_bo.calibration.evaluation import (
 )
 from susp_bo.calibration.record_window import simulated_track_m
 from susp_bo.calibration.study_inputs import StudyError
+from susp_bo.calibration.summary_misfit import group_labels
 from susp_bo.calibration.track_statistics import TrackStatisticsError, minimum_pilot_runs
 from susp_bo.calibration.track_statistics_pilot import PILOT_RUNS, PilotRecord, two_stage_error
 from susp_bo.data.measured import MeasuredRun
@@ -313,6 +314,9 @@ def run_pilot(
         raise
     except ValueError as error:
         raise StudyError(f"output_error.model = 'track_statistics': the pilot: {error}") from None
+    if error.misfit is not None:  # its summaries named by the rig's channels and bands
+        labels = group_labels(error.misfit, spec.channels, spec.spectrum.frequencies_hz())
+        error = dataclasses.replace(error, misfit=dataclasses.replace(error.misfit, labels=labels))
     # a point the fit and the Jacobian share is one stored run: count the distinct ones
     return error, dataclasses.replace(record, simulations=len(touched))
 

@@ -56,7 +56,9 @@ refusal, never a confident answer).
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,10 +83,12 @@ class SummaryMisfitTest:
         runs: M, the pilot runs the covariance came from (M > k + 1).
         n_measured: ν.
         n_simulated: μ.
+        labels: (k,) what each summary is, channel by channel and band group by band group
+            (:func:`group_labels`); () = "channel c, bands a–b" by index.
 
     Raises:
         ValueError: shapes that disagree, non-finite values, a covariance not positive
-            definite, or M ≤ k + 1, naming the field.
+            definite, M ≤ k + 1, or labels that are not k, naming the field.
     """
 
     directions: np.ndarray
@@ -92,6 +96,7 @@ class SummaryMisfitTest:
     runs: int
     n_measured: int
     n_simulated: int
+    labels: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         b = np.array(self.directions, dtype=np.float64)
@@ -110,6 +115,13 @@ class SummaryMisfitTest:
         for name in ("n_measured", "n_simulated"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name}: {getattr(self, name)!r} must be >= 1")
+        if self.labels and len(self.labels) != k:
+            raise ValueError(f"labels: {len(self.labels)} labels for k = {k} summaries")
+        if k % b.shape[0]:
+            raise ValueError(
+                f"directions: k = {k} is not a whole number of band groups of "
+                f"{b.shape[0]} channels"
+            )
         b.setflags(write=False)
         c.setflags(write=False)
         object.__setattr__(self, "directions", b)
@@ -125,11 +137,46 @@ class SummaryMisfitTest:
         """κ = 1/ν + 1/μ."""
         return 1.0 / self.n_measured + 1.0 / self.n_simulated
 
+    def label(self, j: int) -> str:
+        """What summary j is (its label, or channel and band indices)."""
+        if self.labels:
+            return self.labels[j]
+        c, f, k = self.directions.shape
+        groups = k // c
+        edges = group_edges(f, groups)
+        channel, group = divmod(j, groups)
+        return f"channel {channel}, bands {edges[group]}–{edges[group + 1] - 1}"
+
+
+def group_edges(bands: int, groups: int) -> np.ndarray:
+    """(groups + 1,) the first band of each group and one past the last (contiguous groups
+    whose sizes differ by at most one)."""
+    return np.linspace(0, bands, groups + 1).round().astype(int)
+
+
+def group_labels(
+    test: SummaryMisfitTest, channels: Sequence[str], frequencies_hz: np.ndarray
+) -> tuple[str, ...]:
+    """(k,) "CHANNEL LO–HI Hz" for each summary of ``test``, in its order (channel by
+    channel, low band group first), from the rig's channel names and band centres (Hz)."""
+    c, f, k = test.directions.shape
+    if len(channels) != c or len(frequencies_hz) != f:
+        raise ValueError(
+            f"channels: {len(channels)}, frequencies_hz: {len(frequencies_hz)}; expected "
+            f"{c} and {f}"
+        )
+    edges = group_edges(f, k // c)
+    return tuple(
+        f"{name} {frequencies_hz[lo]:.3g}–{frequencies_hz[hi - 1]:.3g} Hz"
+        for name in channels
+        for lo, hi in itertools.pairwise(edges)
+    )
+
 
 def band_group_directions(channels: int, bands: int, groups: int) -> np.ndarray:
     """(C·F x C·groups) G: per channel, the indicator of each of ``groups`` contiguous
     groups of bands (their sizes differ by at most one)."""
-    edges = np.linspace(0, bands, groups + 1).round().astype(int)
+    edges = group_edges(bands, groups)
     g = np.zeros((channels, bands, channels, groups))
     for c in range(channels):
         for k in range(groups):
@@ -180,6 +227,20 @@ def summary_misfit_test(
         )
     except ValueError:
         return None
+
+
+def summary_residuals_z(
+    measured: np.ndarray, simulated: np.ndarray, test: SummaryMisfitTest
+) -> np.ndarray:
+    """(k,) each summary's residual over its own sd, r_j / √(κ Ĉ_B,jj): where the data and
+    the model disagree (a summary alone, not the joint test; ±2 is the usual scatter).
+    Shapes as :func:`summary_misfit` (not checked here)."""
+    y = np.asarray(measured, dtype=np.float64)
+    h = np.asarray(simulated, dtype=np.float64)
+    k = test.dof
+    with one_blas_thread():
+        r = (y.mean(axis=0) - h.mean(axis=0)).reshape(-1) @ test.directions.reshape(-1, k)
+    return r / np.sqrt(test.scale * np.diag(test.covariance))
 
 
 def summary_misfit(

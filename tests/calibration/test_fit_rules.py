@@ -78,6 +78,10 @@ def test_the_loop_applies_the_test_and_refuses_a_model_that_misses_an_effect(
         assert advice_code(reasons, evidence, "command_line") == "summary_misfit"
         words = sentence(reasons, evidence, "command_line")
         assert "channel and band-group summaries" in words and "paired" in words
+        # where: the effect's channel and band group (the toy's summaries by index)
+        assert evidence["summary_misfit_worst"]["summary"] == "channel 2, bands 8–11"
+        assert evidence["summary_misfit_worst"]["z"] > 3
+        assert "most in channel 2, bands 8–11, z = +" in words
     else:
         assert evidence["summary_misfit_p"] > P_LIMIT
         assert "below_expected_fit" not in result.reliability.codes

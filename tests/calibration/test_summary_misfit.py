@@ -9,6 +9,7 @@ cannot reproduce — which the summary log L itself cannot see.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -21,8 +22,10 @@ from susp_bo.calibration.summary_misfit import (
     P_LIMIT,
     SummaryMisfitTest,
     band_group_directions,
+    group_labels,
     summary_misfit,
     summary_misfit_test,
+    summary_residuals_z,
 )
 from susp_bo.calibration.track_statistics import (
     track_statistics_error,
@@ -150,3 +153,30 @@ def test_bad_tests_and_shapes_are_refused_naming_the_field():
     nan = np.full((NU, C, F), np.nan)
     assert all(math.isnan(v) for v in summary_misfit(nan, np.zeros((MU, C, F)), test))
     assert summary_misfit_reason(math.nan, math.nan, test.dof) is None
+
+
+def test_summaries_are_named_and_the_worst_is_where_the_effect_is():
+    """Each summary has a name (by index, or by the rig's channels and band centres), and
+    the largest standardised residual points at the effect's channel and band group."""
+    m0, g, chol = toy()
+    rng = np.random.default_rng(13)
+    test = _test(rng, m0, g, chol)
+    assert [test.label(j) for j in (0, 2, 8)] == [
+        "channel 0, bands 0–3",
+        "channel 0, bands 8–11",
+        "channel 2, bands 8–11",
+    ]
+    frequencies = np.linspace(1.0, 12.0, F)
+    labels = group_labels(test, ("front", "rear", "bogie"), frequencies)
+    assert labels[0] == "front 1–4 Hz" and labels[-1] == "bogie 9–12 Hz"
+    named = dataclasses.replace(test, labels=labels)
+    assert named.label(8) == "bogie 9–12 Hz"
+    with pytest.raises(ValueError, match="labels: 2 labels for k = 9"):
+        dataclasses.replace(test, labels=("a", "b"))
+    with pytest.raises(ValueError, match="channels: 2, frequencies_hz: 12; expected 3 and 12"):
+        group_labels(test, ("front", "rear"), frequencies)
+    effect = effect_of_a_missing_mode(chol).ravel()
+    measured = toy_runs(rng, m0, g, chol, np.zeros(Q), NU, effect)
+    simulated = toy_runs(rng, m0, g, chol, np.zeros(Q), MU)
+    z = summary_residuals_z(measured, simulated, test)
+    assert int(np.argmax(np.abs(z))) == 8 and z[8] > 5  # the last channel's high bands

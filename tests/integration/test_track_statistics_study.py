@@ -87,6 +87,8 @@ def test_the_pilot_runs_through_the_store_and_result_json_records_it(statistics_
     evidence = payload["reliability"]["evidence"]
     assert error["misfit_summaries"] == evidence["summary_misfit_dof"] == 20
     assert 0.0 <= evidence["summary_misfit_p"] <= 1.0 and evidence["summary_misfit_t2"] > 0
+    worst = evidence["summary_misfit_worst"]["summary"]  # named by the rig's channels
+    assert worst.split(" ")[0] in error["channels"] and worst.endswith(" Hz")
     assert "pilot of 2 x 50 runs" in stderr and "pilot done:" in stderr
 
 
