@@ -228,7 +228,10 @@ def store_mismatch(out: Path, error: StoreMismatchError) -> StudyError:
         "data": "the measured data",
         "tracks": "the measured runs",
         "parameter_names": "the calibrated parameters",
-        "output_error": "the output error ([output_error] model, sigma, correlation length)",
+        "output_error": "the output error ([output_error] model, sigma, correlation length; "
+        "an estimated sigma and the paired model's sample counts come from the measured "
+        "samples, which since session 35 are only those the simulation records, so a study "
+        "of imported runs made before then is refused here)",
         "sensor_noise_m_s2": "the sensor noise",
         "realization_length_m": "the length of the model's synthetic track realizations "
         "(track_statistics; since session 35 from the runs' speed records and the rig)",
