@@ -119,8 +119,7 @@ class SummaryMisfitTest:
             raise ValueError(f"labels: {len(self.labels)} labels for k = {k} summaries")
         if k % b.shape[0]:
             raise ValueError(
-                f"directions: k = {k} is not a whole number of band groups of "
-                f"{b.shape[0]} channels"
+                f"directions: k = {k} is not a whole number of band groups of {b.shape[0]} channels"
             )
         b.setflags(write=False)
         c.setflags(write=False)
