@@ -10,7 +10,7 @@ import pytest
 from scipy.signal import argrelmin
 
 from susp_bo.rig.linear import LinearisedRig
-from susp_bo.rig.simulator import synthetic_track
+from susp_bo.rig.simulator import recorded_samples, synthetic_track
 from susp_bo.rig.spec import RigSpec, load_rig_spec
 from susp_bo.rig.spectra import SpectrumSettings
 from susp_bo.rig.track import TrackGeometry, TrackPSD
@@ -171,3 +171,26 @@ def test_a_reused_state_space_gives_the_fresh_rigs_response_bit_for_bit(
     with_slopes = shared._system(None, speed, slopes)
     assert shared._system(None, speed, slopes) is with_slopes
     assert shared._system(None, speed, slopes + 1.0e5) is not with_slopes
+
+
+@pytest.mark.parametrize(("warm_up_s", "total_s"), [(1.0, 9.0), (1.013, 9.0037), (0.995, 8.996)])
+def test_the_linear_response_records_what_the_simulation_records(
+    fast_rig, warm_up_s: float, total_s: float
+) -> None:
+    """The fast path (the discrepancy workflow's linear simulator: the whole speed record
+    at the output rate, recorded after the warm-up) has the same samples as
+    :meth:`Rig.simulate` (:func:`~susp_bo.rig.simulator.recorded_samples`), warm-ups and
+    records on and off the sample grid: its spectra and a measured run's compared window
+    are over the same samples."""
+    spec = load_rig_spec(fast_rig).with_simulation(warm_up_s=warm_up_s)
+    rate = spec.simulation.sample_rate_hz
+    response = LinearisedRig(spec).response(
+        synthetic_track(spec, seed=1),
+        80.0,
+        duration_s=total_s - warm_up_s,
+        time_step_s=1.0 / rate,
+    )
+    first_s, n, interval_s = recorded_samples(spec, total_s)
+    assert response.accelerations_m_s2.shape[1] == response.time_s.size == n
+    assert response.time_s[0] == pytest.approx(first_s, abs=1e-9)
+    assert np.diff(response.time_s) == pytest.approx(np.full(n - 1, interval_s))
