@@ -228,10 +228,12 @@ def run_diagnose(args: argparse.Namespace) -> int:
             f"RESULT_DIR: {result_dir} was calibrated with [output_error] model = "
             "'track_statistics' (the runs' tracks not measured); diagnose compares each run "
             "with the simulation on its own measured track, band by band, which such a study "
-            "does not have: a model error shows there as the lack of fit between the runs "
-            "(result.json reliability evidence lack_of_fit_ratio) or parameters at C_w's "
-            "bounds (at_bound); measure the tracks and calibrate with model = 'paired' to "
-            "diagnose (nothing was computed)"
+            "does not have: a model error shows there as the test of the summaries the fit "
+            "does not use (result.json reliability evidence summary_misfit_p, and "
+            "summary_misfit_worst: the channel and frequency range where the data and the "
+            "model disagree most), the lack of fit between the runs (lack_of_fit_ratio) or "
+            "parameters at C_w's bounds (at_bound); measure the tracks and calibrate with "
+            "model = 'paired' to diagnose (nothing was computed)"
         )
     reliability = calibration_reliability(payload)
     if not reliability.fit_finished and not force:

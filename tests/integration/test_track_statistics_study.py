@@ -146,6 +146,7 @@ def test_diagnose_refuses_a_study_without_the_runs_own_tracks(
     )  # fmt: skip
     assert refused.returncode == 2, refused.stderr[-2000:]
     assert "model = 'track_statistics'" in refused.stderr
+    assert "summary_misfit_worst" in refused.stderr  # where to look instead
     assert "Traceback" not in refused.stderr
     assert not (tmp_path / "d").exists()
 
