@@ -69,7 +69,9 @@ def with_summary_misfit(
     simulation), (μ x C x F) on the model's tracks. ``evidence`` gets
     ``summary_misfit_t2``, ``summary_misfit_p``, ``summary_misfit_dof`` and
     ``summary_misfit_worst`` (the summary whose residual is largest in its own sd, and
-    that z: where the data and the model disagree most) — all null when
+    that z: the nominal channel and band group where the data and the model disagree most;
+    its direction, made orthogonal to the parameters' effect, weighs other bands a little
+    too) — all null when
     ``test`` is None (a pilot too small for one band group per channel), p and T² null
     when the spectra there failed; a trusted sentence then says the test was not made. A
     result that was trusted and whose p is below :data:`.summary_misfit.P_LIMIT` becomes

@@ -204,8 +204,12 @@ def advice_code(
         or first.get("tail_at_face")
     ):
         code = "box_left_mass"  # more budget would refine the same box
-    if code == "below_expected_fit" and first.get("summary_misfit_p") is not None:
-        code = "summary_misfit"  # tracks known by statistics: diagnose cannot name it
+    if code == "below_expected_fit" and "summary_misfit_dof" in evidence:
+        # the summary likelihood (its fit rules ran): diagnose cannot examine it; a model
+        # error (this test's, or the lack of fit's) asks for the physics, while its log L
+        # alone falls short of what it expects only on a search short of the optimum
+        model_error = first.get("summary_misfit_p") is not None or "lack_of_fit_ratio" in first
+        code = "summary_misfit" if model_error else "not_converged"
     return code
 
 

@@ -412,6 +412,11 @@ def run_study(
             if local_after_design and settings.local_search:
                 settings = dataclasses.replace(settings, max_ego_fraction=0.0)
             start_design, start_points = loop_start(study, design)
+            if design is not None and start_design is not design:  # the pilot's fit appended
+                design_note = dict(design_note or {}) | {
+                    "design_points": int(start_design.shape[0]),
+                    "pilot_point_appended": True,
+                }
             result = calibrate(
                 evaluator,
                 study.bounds,

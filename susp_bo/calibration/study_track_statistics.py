@@ -322,8 +322,11 @@ def run_pilot(
 
 
 def pilot_point(record: PilotRecord, bounds: np.ndarray) -> np.ndarray:
-    """(q,) the pilot's fit of the summaries, its second point, in physical units."""
-    return bounds[0] + np.asarray(record.first_fit) * (bounds[1] - bounds[0])
+    """(q,) the pilot's fit of the summaries, its second point, in physical units, inside
+    C_w (a fit at a face, unit coordinate 1.0, can round one step past the upper bound:
+    a warm design holding it would be refused, second review of session 36)."""
+    point = bounds[0] + np.asarray(record.first_fit) * (bounds[1] - bounds[0])
+    return np.clip(point, bounds[0], bounds[1])
 
 
 def pilot_payload(

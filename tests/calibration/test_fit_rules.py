@@ -141,3 +141,22 @@ def test_the_fit_rules_test_the_summaries_under_the_summary_likelihood_only(mode
     other = _Other()
     evidence = with_fit_rules(result, other, other.measured).reliability.evidence
     assert "lack_of_fit_ratio" in evidence and "summary_misfit_p" not in evidence
+
+
+def test_the_summary_models_refusals_advise_what_can_be_done_without_measured_tracks():
+    """Under the summary likelihood (its fit rules ran: ``summary_misfit_dof`` in the
+    evidence) ``susp-bo diagnose`` cannot examine the result: a model error (this test's or
+    the lack of fit's) gets the advice to measure the tracks or add the effect; log L below
+    what the model expects (a search short of the optimum, this model cannot fit worse)
+    gets more budget. Other models keep diagnose's advice."""
+    statistics = {"summary_misfit_dof": 30, "budget": 200}
+    log_l = {"code": "below_expected_fit", "message": "m", "best_log_likelihood": -10.0}
+    lack = {"code": "below_expected_fit", "message": "m", "lack_of_fit_ratio": 5.0}
+    test = {"code": "below_expected_fit", "message": "m", "summary_misfit_p": 1e-6}
+    assert advice_code([test], statistics, "command_line") == "summary_misfit"
+    assert advice_code([lack], statistics, "command_line") == "summary_misfit"
+    assert advice_code([log_l], statistics, "command_line") == "not_converged"
+    assert "--resume --budget 400" in sentence([log_l], statistics, "command_line")
+    for reason in (log_l, lack):
+        assert advice_code([reason], {"budget": 200}, "command_line") == "below_expected_fit"
+        assert "susp-bo diagnose" in sentence([reason], {"budget": 200}, "command_line")

@@ -159,3 +159,16 @@ def test_the_loop_starts_from_the_pilots_fit_cold_or_warm() -> None:
     assert loop_start(cold, None) == (None, None)
     design, points = loop_start(cold, warm)
     assert design is warm and points is None
+
+
+def test_a_pilot_fit_on_an_upper_face_stays_inside_c_w() -> None:
+    """A fit at a face (unit coordinate 1.0) can round one step past the upper bound in
+    physical units (bounds (0.001, 0.01): 0.001 + 1.0 x 0.009 > 0.01); a warm design
+    holding it would be refused by calibrate (second review, session 36)."""
+    bounds = np.array([[0.001, 1.0], [0.01, 3.0]])
+    assert bounds[0, 0] + 1.0 * (bounds[1, 0] - bounds[0, 0]) > bounds[1, 0]  # the rounding
+    record = PilotRecord(first_fit=(1.0, 0.0), simulations=0, shrinkage=0.1)
+    point = pilot_point(record, bounds)
+    assert point.tolist() == [0.01, 1.0]
+    design, _ = loop_start(SimpleNamespace(pilot=record, bounds=bounds), np.array([[0.005, 2.0]]))
+    assert np.all((bounds[0] <= design) & (design <= bounds[1]))
