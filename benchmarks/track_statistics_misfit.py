@@ -23,6 +23,8 @@ vehicle (``none``).
 Usage::
 
     python benchmarks/track_statistics_misfit.py --experiments 6 --seed 34
+    python benchmarks/track_statistics_misfit.py --experiments 16 --seed 36 --changes none \
+        --noise 0.005 --fast-rig DIR
 
 About 30–50 s a fit on one core (24 fits ≈ 15 min).
 """
@@ -40,6 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from coverage_pybullet import fast_rig
 from fast_path import FastPathProblem, Options, sbc_draw
 from track_statistics_pilot import summary_fit, two_stage_error, whitened_jacobian
 
@@ -124,12 +127,20 @@ def main(argv: list[str] | None = None) -> int:
         "--changes", nargs="*", default=list(DEFAULT_CHANGES), choices=list(CHANGES)
     )
     parser.add_argument("--noise", type=float, default=NOISE_M_S2, help="sensor noise, m/s² rms")
+    parser.add_argument(
+        "--fast-rig",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="the test suite's cheap variant of the demo's rig, written in DIR "
+        "(coverage_pybullet.fast_rig: 8 s records, 4 s segments, 32 bands)",
+    )
     args = parser.parse_args(argv)
     if args.experiments < 1:
         parser.error(f"--experiments: got {args.experiments}; expected an integer >= 1")
     if not args.noise > 0:
         parser.error(f"--noise: got {args.noise}; expected a sensor noise > 0 m/s² rms")
-    spec = load_rig_spec(DEMO_RIG)
+    spec = load_rig_spec(DEMO_RIG if args.fast_rig is None else fast_rig(args.fast_rig))
     records = []
     for change in args.changes:
         for e in range(args.experiments):
