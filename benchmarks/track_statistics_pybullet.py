@@ -121,11 +121,6 @@ def pybullet_pilot(problem: PyBulletProblem, w: np.ndarray, runs: int, seed: int
     return measured_log_spectra(problem.spec, pilot)
 
 
-def _physical(bounds: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """(1 x q) the unit-cube point u in physical units."""
-    return (bounds[0] + u * (bounds[1] - bounds[0]))[None, :]
-
-
 def record_path(out: Path, index: int, change: str, fast: bool) -> Path:
     """OUT/NNN.json for the demo's rig and unchanged data (as before ``--change``), else
     OUT/CHANGE[-fast]-NNN.json: a folder reused with other options never mixes records."""
@@ -156,7 +151,9 @@ def experiment(args: tuple[int, int, int, Path, str, Path | None]) -> dict:
         math.nan
         if error.misfit is None
         else summary_misfit(
-            problem.measured, problem.spectra(_physical(bounds, u))[0], error.misfit
+            problem.measured,
+            problem.spectra((bounds[0] + u * (bounds[1] - bounds[0]))[None])[0],
+            error.misfit,
         )[1]
     )
     record = {

@@ -236,17 +236,19 @@ def summary_misfit_test(
         return None
 
 
+def _summary_residual(y: np.ndarray, h: np.ndarray, test: SummaryMisfitTest) -> np.ndarray:
+    """(k,) r = Bᵀ (ȳ − h̄) of (ν x C x F) measured and (μ x C x F) simulated spectra."""
+    with one_blas_thread():
+        return (y.mean(axis=0) - h.mean(axis=0)).reshape(-1) @ test.directions.reshape(-1, test.dof)
+
+
 def summary_residuals_z(
     measured: np.ndarray, simulated: np.ndarray, test: SummaryMisfitTest
 ) -> np.ndarray:
     """(k,) each summary's residual over its own sd, r_j / √(κ Ĉ_B,jj): where the data and
     the model disagree (a summary alone, not the joint test; ±2 is the usual scatter).
     Shapes as :func:`summary_misfit` (not checked here)."""
-    y = np.asarray(measured, dtype=np.float64)
-    h = np.asarray(simulated, dtype=np.float64)
-    k = test.dof
-    with one_blas_thread():
-        r = (y.mean(axis=0) - h.mean(axis=0)).reshape(-1) @ test.directions.reshape(-1, k)
+    r = _summary_residual(np.asarray(measured, np.float64), np.asarray(simulated, np.float64), test)
     return r / np.sqrt(test.scale * np.diag(test.covariance))
 
 
@@ -276,8 +278,8 @@ def summary_misfit(
         )
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(h))):
         return math.nan, math.nan
+    r = _summary_residual(y, h, test)
     with one_blas_thread():
-        r = (y.mean(axis=0) - h.mean(axis=0)).reshape(-1) @ test.directions.reshape(-1, k)
         t2 = float(r @ np.linalg.solve(test.scale * test.covariance, r))
     n = test.runs
     statistic = (n - k) / (k * (n - 1)) * t2
