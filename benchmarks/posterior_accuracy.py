@@ -101,8 +101,10 @@ Runner = Callable[[Target, int, int], tuple[np.ndarray, int, dict[str, object] |
 """(target, budget, seed) -> (draws, evaluations used, this tool's report or None): the
 report's ``verdict`` (reliability verdict and reasons), ``sampler`` (whose draws),
 ``r_hat_max`` (their worst split R-hat), ``draws_sd_nats`` (the surrogate's mean sd of
-log L̃ over them), ``additive_kernel_loo_gain`` (the kernel advice's gain, or None) and the
-verdict's ``sentence`` join the run's row."""
+log L̃ over them), ``additive_kernel_loo_gain`` (the kernel advice's gain, or None), the
+verdict's ``sentence`` and ``kernel_switch`` (the leave-one-out comparisons during the
+search and when it switched to ``kernel="auto"``, :mod:`susp_bo.calibration.kernel_switch`;
+None when none was made) join the run's row."""
 ROBUSTNESS_TARGETS = ("curved_chain_5d", "student_t_6d", "trimodal_5d", "noisy_gaussian_7d")
 """The targets of issue 10, part 3 (MMTV <= 0.05 at 50 (q + 2), never worse than PyVBMC)."""
 
@@ -129,6 +131,9 @@ def run_susp_bo(settings: CalibrationSettings) -> Runner:
                 else reliability.evidence.get("additive_kernel_loo_gain")
             ),
             "sentence": None if reliability is None else reliability.sentence,
+            "kernel_switch": (  # the comparisons during the search (kernel_switch), if any
+                None if result.kernel_switch is None else result.kernel_switch.to_dict()
+            ),
         }
         return result.samples, result.n_evaluations, report
 

@@ -325,6 +325,10 @@ class SearchConfig:
             (default), "additive_pairs" or "auto" (both fitted at every refit, the better
             leave-one-out score kept; for a log L made of one- and two-parameter terms,
             :mod:`susp_bo.calibration.additive_kernel`; each refit costs about 4x).
+        kernel_switch: with ``kernel = "matern"``, q >= 3 and no local phase, switch the
+            rest of the search to ``"auto"`` (and ``refine_optimism`` >= 2) when the
+            additive kernel predicts the evaluations better
+            (:mod:`susp_bo.calibration.kernel_switch`); false = keep the kernel given.
     """
 
     section: ClassVar[str] = "search"
@@ -332,9 +336,10 @@ class SearchConfig:
     basins: bool = True
     refine_optimism: float = 0.0
     kernel: str = "matern"
+    kernel_switch: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("local", "basins"):
+        for name in ("local", "basins", "kernel_switch"):
             value = getattr(self, name)
             if not isinstance(value, bool):
                 raise ValueError(f"search.{name}: {value!r} is not allowed; expected true or false")

@@ -215,6 +215,11 @@ BAD_EDITS = [
         r"search\.kernel: 'rbf' is not allowed; expected one of \"matern\", \"additive_pairs\"",
     ),
     (
+        "kernel_switch = true",
+        'kernel_switch = "no"',
+        r"search\.kernel_switch: 'no' is not allowed; expected true or false",
+    ),
+    (
         'sampler = "auto"',
         'sampler = "nuts"',
         r"mcmc\.sampler: 'nuts' is not allowed; expected one of \"random_walk\", \"hmc\", \"auto\"",

@@ -27,11 +27,12 @@ points, two shared cores).
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 
 import numpy as np
 
-from susp_bo.calibration.loop_step import Laplace, fit_in_box
+from susp_bo.calibration.loop_step import FINAL_ITERATION, Laplace, fit_in_box, torch_state
 from susp_bo.calibration.reliability import Reliability
 from susp_bo.calibration.reliability_sentence import (
     ADDITIVE_GAIN_KEY,
@@ -40,6 +41,8 @@ from susp_bo.calibration.reliability_sentence import (
 )
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.surrogate import Surrogate
+
+logger = logging.getLogger(__name__)
 
 
 def needs_kernel_advice(reliability: Reliability | None, settings: CalibrationSettings) -> bool:
@@ -101,3 +104,29 @@ def with_kernel_gain(reliability: Reliability, gain: float) -> Reliability:
         return reliability
     evidence = dict(reliability.evidence) | {ADDITIVE_GAIN_KEY: gain}
     return dataclasses.replace(reliability, evidence=evidence).worded_for("python")
+
+
+def with_kernel_advice(
+    reliability: Reliability | None,
+    x: np.ndarray,
+    y: np.ndarray,
+    box: np.ndarray,
+    settings: CalibrationSettings,
+    final: Surrogate,
+    boxed: bool = False,
+    laplace: Laplace | None = None,
+) -> Reliability | None:
+    """The finished run's verdict with the gain in its evidence where it advises
+    (:func:`needs_kernel_advice`), else ``reliability`` itself; arguments as
+    :func:`additive_kernel_gain` (the final fit's). A fit that fails is logged and the
+    verdict kept: advice must not lose a finished result."""
+    if reliability is None or not needs_kernel_advice(reliability, settings):
+        return reliability
+    try:
+        with torch_state(settings.num_threads):
+            gain = additive_kernel_gain(x, y, box, settings, FINAL_ITERATION, final, boxed, laplace)
+    except Exception as error:  # BoTorch's ModelFittingError is an Exception
+        logger.warning("the additive kernel could not be fitted for advice: %s", error)
+        return reliability
+    logger.info("additive kernel's leave-one-out gain over the Matérn: %.3f nats", gain)
+    return with_kernel_gain(reliability, gain)

@@ -74,11 +74,8 @@ from susp_bo.calibration.design import (
 from susp_bo.calibration.exploration_audit import audit_size, run_audit
 from susp_bo.calibration.fit_rules import with_fit_rules
 from susp_bo.calibration.iteration_record import record_iteration
-from susp_bo.calibration.kernel_advice import (
-    additive_kernel_gain,
-    needs_kernel_advice,
-    with_kernel_gain,
-)
+from susp_bo.calibration.kernel_advice import with_kernel_advice
+from susp_bo.calibration.kernel_switch import KernelSwitcher
 from susp_bo.calibration.local_search import LocalSearchResult, SpectraEvaluator
 from susp_bo.calibration.loop_phases import run_basin_phase, run_local_phase
 from susp_bo.calibration.loop_step import (
@@ -301,6 +298,7 @@ def calibrate(
             "local_search: the evaluator exposes no spectra (spectra/log_likelihood_of); "
             "running without the local phase"
         )
+    switcher = KernelSwitcher(settings, q, budget, local_phase=wants_local)
 
     def audit_left(x: np.ndarray) -> int:
         """Evaluations an early stop's audit would spend now (0: too few are left)."""
@@ -324,6 +322,11 @@ def calibrate(
                 laplace,
             )
         phase, box = step.phase, step.box
+        if switcher.due(x.shape[0], phase, boxed):  # the additive kernel's shape, if better
+            with torch_state(settings.num_threads):
+                settings = switcher.consider(x, y, box, settings, iteration, step.surrogate)
+            if switcher.switched_at is not None:
+                continue  # this step again, with the kernels the run goes on with
         if settings.basin_search and not basins_done and phase == "refine":
             basins_done = True
             n_before = x.shape[0]
@@ -457,18 +460,9 @@ def calibrate(
             getattr(getattr(evaluate, "error", None), "expectation_bounds_maximum", False)
         ),
     )
-    if needs_kernel_advice(reliability, settings):  # would the additive kernel do better?
-        try:
-            with torch_state(settings.num_threads):
-                gain = additive_kernel_gain(
-                    x, y, box, settings, FINAL_ITERATION, surrogate, boxed, laplace
-                )
-        except Exception as error:  # advice only: a failed fit (e.g. BoTorch's
-            # ModelFittingError, an Exception) must not lose a finished result
-            logger.warning("the additive kernel could not be fitted for advice: %s", error)
-        else:
-            logger.info("additive kernel's leave-one-out gain over the Matérn: %.3f nats", gain)
-            reliability = with_kernel_gain(reliability, gain)
+    reliability = with_kernel_advice(  # would the additive kernel do better?
+        reliability, x, y, box, settings, surrogate, boxed, laplace
+    )
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)
     result = CalibrationResult(
         names=tuple(names),
@@ -488,6 +482,7 @@ def calibrate(
         local_search=local,
         basins=tuple(climbs),
         local_search_superseded=superseded,
+        kernel_switch=switcher.record(),
     )
     measured = getattr(evaluate, "measured", None)
     spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator

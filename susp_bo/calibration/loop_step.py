@@ -182,6 +182,7 @@ class Step:
             sd[log L̃] in nats).
         stop_reason: why it stops ("ego_converged", "converged", "budget"); "" otherwise.
         box: (2 x q) the search box the proposal is in (physical units).
+        surrogate: the fit the step decided on (in ``box``'s unit cube).
     """
 
     phase: Phase
@@ -189,6 +190,7 @@ class Step:
     criterion: float
     stop_reason: str
     box: np.ndarray
+    surrogate: Surrogate
 
 
 def propose_step(
@@ -221,9 +223,11 @@ def propose_step(
         )
         converged = criterion < settings.ei_tolerance
         if not (converged or ego_exhausted):
-            return Step("ego", u, criterion, "", box)
+            return Step("ego", u, criterion, "", box, surrogate)
         if not settings.refine:
-            return Step("ego", None, criterion, "ego_converged" if converged else "budget", box)
+            return Step(
+                "ego", None, criterion, "ego_converged" if converged else "budget", box, surrogate
+            )
     candidates, n_post = _refinement_candidates(
         surrogate, settings, derived_seed(seed, iteration, 3)
     )
@@ -246,8 +250,8 @@ def propose_step(
         surrogate, candidates, size, n_post, optimism=settings.refine_optimism
     )
     if criterion < settings.refine_tolerance:
-        return Step("refine", None, criterion, "converged", box)
-    return Step("refine", u, criterion, "", box)
+        return Step("refine", None, criterion, "converged", box, surrogate)
+    return Step("refine", u, criterion, "", box, surrogate)
 
 
 @dataclass(frozen=True)

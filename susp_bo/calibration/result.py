@@ -20,6 +20,33 @@ Phase = Literal["design", "ego", "basin", "local", "refine", "explore", "check"]
 
 
 @dataclass(frozen=True)
+class KernelSwitch:
+    """The comparisons a run made and whether it switched.
+
+    Attributes:
+        checks: ((n_evaluations, gain in nats a point), …) in the order they were made.
+        switched_at: evaluations when the run switched to ``kernel="auto"``; None = never.
+    """
+
+    checks: tuple[tuple[int, float], ...]
+    switched_at: int | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: ``checks`` as [{"n_evaluations", "additive_kernel_loo_gain"}, …]
+        (the gain null where the additive fit failed)."""
+        return {
+            "checks": [
+                {
+                    "n_evaluations": n,
+                    "additive_kernel_loo_gain": gain if math.isfinite(gain) else None,
+                }
+                for n, gain in self.checks
+            ],
+            "switched_at": self.switched_at,
+        }
+
+
+@dataclass(frozen=True)
 class IterationReport:
     """One refinement iteration, passed to ``on_iteration`` and logged as one line."""
 
@@ -89,6 +116,10 @@ class CalibrationResult:
             search then went on over C_w, and ``local_search`` describes the first hill only.
         basins: the climbs of the basin phase (:mod:`.basin_search`), empty when the data
             had no secondary basin when EGO ended (or the phase is off).
+        kernel_switch: the leave-one-out comparisons of the additive kernel with the
+            Matérn during the search and when the run switched to ``kernel="auto"``
+            (:mod:`.kernel_switch`); None when none was made (``result.json`` then has no
+            ``kernel_switch`` key).
     """
 
     names: tuple[str, ...]
@@ -108,6 +139,7 @@ class CalibrationResult:
     local_search: LocalSearchResult | None = None
     basins: tuple[ClimbReport, ...] = ()
     local_search_superseded: bool = False
+    kernel_switch: KernelSwitch | None = None
 
     @property
     def samples(self) -> np.ndarray:
@@ -178,4 +210,6 @@ class CalibrationResult:
             "local_search": self.local_search_dict(),
             "basin_climbs": self.basin_climbs(),
             "reliability": None if self.reliability is None else self.reliability.to_dict(),
-        }
+        } | (  # the key only where the kernels were compared: other results are unchanged
+            {} if self.kernel_switch is None else {"kernel_switch": self.kernel_switch.to_dict()}
+        )

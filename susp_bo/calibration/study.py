@@ -137,6 +137,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         local_search=config.search.local,
         basin_search=config.search.basins,
         refine_optimism=config.search.refine_optimism,
+        kernel_switch=config.search.kernel_switch,
         surrogate=SurrogateSettings(kernel=config.search.kernel),  # type: ignore[arg-type]
     )
 

@@ -133,12 +133,12 @@ def test_a_failed_advice_fit_keeps_the_finished_result(monkeypatch: pytest.Monke
     fit after every evaluation was spent, it must not lose the result."""
     from botorch.exceptions.errors import ModelFittingError
 
-    import susp_bo.calibration.loop as loop
+    import susp_bo.calibration.kernel_advice as kernel_advice
 
     def failing(*args: object, **kwargs: object) -> float:
         raise ModelFittingError("All attempts to fit the model have failed.")
 
-    monkeypatch.setattr(loop, "additive_kernel_gain", failing)
+    monkeypatch.setattr(kernel_advice, "additive_kernel_gain", failing)
     names = [f"w{i}" for i in range(DIM)]
     result = calibrate(_banana_target, UNIT_BOX, names, SMALL, progress=False)
     assert result.reliability is not None and result.reliability.verdict == "not_trusted"
@@ -160,9 +160,10 @@ def _banana_target(w: np.ndarray) -> np.ndarray:
     return _chain(np.atleast_2d(w))
 
 
+# the advice after a run that kept the Matérn: no switch during it (kernel_switch=False)
 SMALL = CalibrationSettings(
     max_evaluations=24, batch_size=3, mcmc_chains=8, mcmc_warmup=100, mcmc_samples=100,
-    candidate_count=64, check_points=0, allow_small_budget=True,
+    candidate_count=64, check_points=0, allow_small_budget=True, kernel_switch=False,
 )  # fmt: skip
 
 
