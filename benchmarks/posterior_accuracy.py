@@ -4,7 +4,13 @@ For each analytic target of ``susp_bo.calibration.test_functions`` (exact poster
 known) and each budget, this script runs in the same process:
 
 - ``susp_bo``: :func:`susp_bo.calibration.loop.calibrate` with default settings
-  (raw log L kriged, ``transform="none"``) — the tool;
+  (raw log L kriged, ``transform="none"``) — the tool; since session 37 the default
+  switches a q >= 3 run to ``kernel="auto"`` and ``refine_optimism=2`` when the
+  pairwise additive kernel predicts the evaluations better
+  (:mod:`susp_bo.calibration.kernel_switch`), and so do the other ``susp_bo-*`` methods
+  that keep the Matérn kernel;
+- ``susp_bo-matern``: the default without that switch (``kernel_switch=False``): the
+  default of sessions 8–36, whose figures the results file records;
 - ``susp_bo-auto``: the same with ``transform="auto"`` (warping chosen by leave-one-out
   at each refit) — with the next one, the measurement behind the dynamic-range choice;
 - ``susp_bo-logdef``: the same with ``transform="log_deficit"`` always;
@@ -149,6 +155,7 @@ def _runners(batch_size: int) -> dict[str, Callable[[], Runner]]:
 
     return {
         "susp_bo": lambda: run_susp_bo(base),
+        "susp_bo-matern": lambda: run_susp_bo(replace(base, kernel_switch=False)),
         "susp_bo-auto": with_surrogate(transform="auto"),
         "susp_bo-logdef": with_surrogate(transform="log_deficit"),
         "susp_bo-ego": lambda: run_susp_bo(replace(base, refine=False, max_ego_fraction=1.0)),

@@ -79,6 +79,9 @@ def additive_kernel_gain(
 ) -> float:
     """LOO score of the additive kernel minus ``final``'s, on ``final``'s training data.
 
+    Used after a run (the advice: ``final`` is the run's final surrogate) and during one
+    (:mod:`.kernel_switch`: ``final`` is the step's Matérn fit, ``iteration`` the step's).
+
     Args:
         x: (n x q) every evaluated point (physical units), as the final fit got them.
         y: (n,) their log L (NaN for failures; imputed as the final fit imputes them).
@@ -119,8 +122,15 @@ def with_kernel_advice(
     """The finished run's verdict with the gain in its evidence where it advises
     (:func:`needs_kernel_advice`), else ``reliability`` itself; arguments as
     :func:`additive_kernel_gain` (the final fit's). A fit that fails is logged and the
-    verdict kept: advice must not lose a finished result."""
-    if reliability is None or not needs_kernel_advice(reliability, settings):
+    verdict kept: advice must not lose a finished result.
+
+    Not in a search box (``boxed``: a trust region or the local phase's box): there the
+    GP models what is left of log L around the Laplace bowl on the few points in the box,
+    and the gain says nothing about the posterior's shape (session 37, on the demo's
+    problem: +0.01 to +1.18 in the box of results the Matérn got ``trusted`` and right;
+    :mod:`.kernel_switch`). Such a run is advised more budget, as before session 30.
+    """
+    if reliability is None or boxed or not needs_kernel_advice(reliability, settings):
         return reliability
     try:
         with torch_state(settings.num_threads):

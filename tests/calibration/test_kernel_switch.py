@@ -10,7 +10,12 @@ import numpy as np
 import pytest
 
 from susp_bo.calibration import kernel_switch
-from susp_bo.calibration.kernel_switch import CHECK_EVERY, SWITCH_OPTIMISM, KernelSwitcher
+from susp_bo.calibration.kernel_switch import (
+    CHECK_EVERY,
+    LATER_GAIN_NATS,
+    SWITCH_OPTIMISM,
+    KernelSwitcher,
+)
 from susp_bo.calibration.loop import CalibrationSettings, calibrate
 from susp_bo.calibration.loop_step import fit_in_box
 from susp_bo.calibration.reliability_sentence import ADDITIVE_GAIN_KEY, ADDITIVE_GAIN_NATS
@@ -83,6 +88,26 @@ def test_a_failed_additive_fit_switches_nothing(monkeypatch: pytest.MonkeyPatch)
     assert record.to_dict()["checks"][0]["additive_kernel_loo_gain"] is None  # JSON null
 
 
+def test_a_later_comparison_needs_a_larger_gain(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Refinement packs points where the posterior has mass; there the additive kernel
+    gains a little on any log L (a Student-t: +0.16 late in a run), so a comparison after
+    the first needs LATER_GAIN_NATS."""
+    between = 0.5 * (ADDITIVE_GAIN_NATS + LATER_GAIN_NATS)
+    monkeypatch.setattr(kernel_switch, "additive_kernel_gain", lambda *a, **k: between)
+    settings = CalibrationSettings()
+    switcher, after = _considered(_three_way, settings)  # the first comparison: switches
+    assert switcher.switched_at == 60 and after.surrogate.kernel == "auto"
+    later = KernelSwitcher(settings, DIM, 200, local_phase=False)
+    later.checks.append((40, -0.5))
+    u = np.random.default_rng(0).random((60, DIM))
+    matern = fit_in_box(u, _three_way(u), UNIT_BOX, settings, 7)
+    assert later.consider(u, _three_way(u), UNIT_BOX, settings, 7, matern) is settings
+    assert later.switched_at is None and later.checks[-1] == (60, between)
+    monkeypatch.setattr(kernel_switch, "additive_kernel_gain", lambda *a, **k: LATER_GAIN_NATS)
+    assert later.consider(u, _three_way(u), UNIT_BOX, settings, 7, matern) is not settings
+    assert later.switched_at == 60
+
+
 @pytest.mark.parametrize(
     ("settings", "q", "local_phase"),
     [
@@ -133,7 +158,8 @@ def test_calibrate_switches_on_a_banana_chain_and_records_it() -> None:
     assert isinstance(record, KernelSwitch)
     assert record.switched_at is not None
     assert record.switched_at == record.checks[-1][0]
-    assert record.checks[-1][1] >= ADDITIVE_GAIN_NATS
+    needed = ADDITIVE_GAIN_NATS if len(record.checks) == 1 else LATER_GAIN_NATS
+    assert record.checks[-1][1] >= needed
     assert result.n_evaluations == SMALL.max_evaluations
     as_json = json.loads(json.dumps(result.to_dict(), allow_nan=False))
     assert as_json["kernel_switch"]["switched_at"] == record.switched_at
