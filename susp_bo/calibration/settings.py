@@ -98,11 +98,12 @@ class CalibrationSettings:
             is exp(E[log L̃] + κ sd − max) (:func:`.acquisition.select_uncertainty_batch`):
             refines where the surrogate may be missing posterior mass (curved posteriors'
             arms; ``benchmarks/posterior_accuracy.py``, method ``susp_bo-optimistic``).
-        kernel_switch: with the default Matérn kernel, q >= 3 and a search over C_w (no
-            trust region, no local phase): when refinement starts, and after every further
-            10 % of the budget, compare the pairwise additive kernel's leave-one-out score
-            with the Matérn's on the same points and, at +0.1 nats a point or more, run the
-            rest with ``surrogate.kernel="auto"`` and ``refine_optimism`` >= 2
+        kernel_switch: with the default Matérn kernel and fixed noise, q >= 3 and a search
+            over C_w (no trust region, no local phase): when refinement starts, and after
+            every further 10 % of the budget, compare the pairwise additive kernel's
+            leave-one-out score with the Matérn's on the same points and, at +0.1 nats a
+            point or more (+0.3 after the first comparison), run the rest with
+            ``surrogate.kernel="auto"`` and ``refine_optimism`` >= 2
             (:mod:`.kernel_switch`; recorded in ``CalibrationResult.kernel_switch``).
             False = keep the kernel given.
         estimator: L̃ used by MCMC: "plug_in", "mean_log" or "expected" (paper's E[L̃]).

@@ -114,11 +114,12 @@ def test_a_later_comparison_needs_a_larger_gain(monkeypatch: pytest.MonkeyPatch)
         (CalibrationSettings(kernel_switch=False), 5, False),
         (CalibrationSettings(surrogate=SurrogateSettings(kernel="additive_pairs")), 5, False),
         (CalibrationSettings(surrogate=SurrogateSettings(kernel="auto")), 5, False),
+        (CalibrationSettings(surrogate=SurrogateSettings(noise="learned")), 5, False),
         (CalibrationSettings(), 2, False),
         (CalibrationSettings(trust_region=True), 5, False),
         (CalibrationSettings(), 5, True),
     ],
-    ids=["off", "additive", "auto", "q2", "trust_region", "local_phase"],
+    ids=["off", "additive", "auto", "noise_learned", "q2", "trust_region", "local_phase"],
 )
 def test_no_comparison_where_the_switch_does_not_apply(
     settings: CalibrationSettings, q: int, local_phase: bool
