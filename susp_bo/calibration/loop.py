@@ -17,7 +17,10 @@
       its Laplace approximation sets the search box (mode ± ``trust_region_half_width_sd``
       sd, :mod:`.trust_region`) and the GP's fixed prior mean (``laplace_mean``);
    b. posterior refinement (:func:`.acquisition.select_uncertainty_batch`) until the
-      posterior mean of sd[log L̃] falls below ``refine_tolerance`` nats;
+      posterior mean of sd[log L̃] falls below ``refine_tolerance`` nats; with
+      ``settings.kernel_switch`` a global search compares the pairwise additive kernel with
+      the Matérn as it starts and every 10 % of the budget after, and may go on with
+      ``kernel="auto"`` (:mod:`.kernel_switch`);
    all within the budget ``max_evaluations``;
 4. MH sampling of the surrogate posterior and summaries (:mod:`.mcmc`, :mod:`.posterior`).
 
