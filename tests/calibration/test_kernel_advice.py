@@ -17,24 +17,7 @@ from susp_bo.calibration.loop_step import fit_in_box
 from susp_bo.calibration.reliability import Reliability
 from susp_bo.calibration.reliability_sentence import ADDITIVE_GAIN_KEY, ADDITIVE_GAIN_NATS
 from susp_bo.calibration.surrogate import SurrogateSettings
-
-DIM = 3
-UNIT_BOX = np.array([[0.0] * DIM, [1.0] * DIM])
-
-
-def _chain(u: np.ndarray) -> np.ndarray:
-    """A banana chain (log L a sum of terms in one or two parameters), unit cube."""
-    x = 6.0 * (u - 0.5)
-    out = -0.5 * x[:, 0] ** 2
-    for i in range(1, x.shape[1]):
-        out = out - 0.5 * ((x[:, i] - 0.5 * x[:, i - 1] ** 2 + 1.0) / 0.5) ** 2
-    return out
-
-
-def _three_way(u: np.ndarray) -> np.ndarray:
-    """A log L no sum of pairwise terms can be: a radial power and a three-way product."""
-    x = 6.0 * (u - 0.5)
-    return -0.05 * np.sum(x**2, axis=1) ** 1.5 + 3.0 * np.sin(x[:, 0] * x[:, 1] * x[:, 2] / 3.0)
+from tests.calibration.kernel_targets import DIM, UNIT_BOX, chain, three_way
 
 
 def _gain(f, n: int, seed: int = 0) -> float:
@@ -46,9 +29,9 @@ def _gain(f, n: int, seed: int = 0) -> float:
 
 
 def test_the_gain_tells_an_additive_log_l_from_one_with_three_way_terms() -> None:
-    chain, three_way = _gain(_chain, 60), _gain(_three_way, 60)
-    assert chain >= ADDITIVE_GAIN_NATS, chain
-    assert three_way < ADDITIVE_GAIN_NATS, three_way
+    additive, not_additive = _gain(chain, 60), _gain(three_way, 60)
+    assert additive >= ADDITIVE_GAIN_NATS, additive
+    assert not_additive < ADDITIVE_GAIN_NATS, not_additive
 
 
 def _not_converged(**evidence: object) -> Reliability:
@@ -157,7 +140,7 @@ def test_a_narrow_posterior_keeps_its_trust_region_advice() -> None:
 
 
 def _banana_target(w: np.ndarray) -> np.ndarray:
-    return _chain(np.atleast_2d(w))
+    return chain(np.atleast_2d(w))
 
 
 # the advice after a run that kept the Matérn: no switch during it (kernel_switch=False)

@@ -21,24 +21,7 @@ from susp_bo.calibration.loop_step import fit_in_box
 from susp_bo.calibration.reliability_sentence import ADDITIVE_GAIN_KEY, ADDITIVE_GAIN_NATS
 from susp_bo.calibration.result import KernelSwitch
 from susp_bo.calibration.surrogate import SurrogateSettings
-
-DIM = 3
-UNIT_BOX = np.array([[0.0] * DIM, [1.0] * DIM])
-
-
-def _chain(u: np.ndarray) -> np.ndarray:
-    """A banana chain (log L a sum of terms in one or two parameters), unit cube."""
-    x = 6.0 * (u - 0.5)
-    out = -0.5 * x[:, 0] ** 2
-    for i in range(1, x.shape[1]):
-        out = out - 0.5 * ((x[:, i] - 0.5 * x[:, i - 1] ** 2 + 1.0) / 0.5) ** 2
-    return out
-
-
-def _three_way(u: np.ndarray) -> np.ndarray:
-    """A log L no sum of pairwise terms can be: a radial power and a three-way product."""
-    x = 6.0 * (u - 0.5)
-    return -0.05 * np.sum(x**2, axis=1) ** 1.5 + 3.0 * np.sin(x[:, 0] * x[:, 1] * x[:, 2] / 3.0)
+from tests.calibration.kernel_targets import DIM, UNIT_BOX, chain, three_way
 
 
 def _considered(f, settings: CalibrationSettings, n: int = 60) -> tuple[KernelSwitcher, object]:
@@ -51,7 +34,7 @@ def _considered(f, settings: CalibrationSettings, n: int = 60) -> tuple[KernelSw
 
 def test_an_additive_log_l_switches_the_rest_of_the_run_to_both_kernels() -> None:
     settings = CalibrationSettings(refine_optimism=0.5)
-    switcher, after = _considered(_chain, settings)
+    switcher, after = _considered(chain, settings)
     assert switcher.switched_at == 60
     assert after.surrogate.kernel == "auto"
     assert after.refine_optimism == SWITCH_OPTIMISM  # at least 2
@@ -60,13 +43,13 @@ def test_an_additive_log_l_switches_the_rest_of_the_run_to_both_kernels() -> Non
     assert n == 60 and gain >= ADDITIVE_GAIN_NATS
     # switched once: no more comparisons
     assert not switcher.due(200, "refine", boxed=False)
-    _, higher = _considered(_chain, replace(settings, refine_optimism=3.0))
+    _, higher = _considered(chain, replace(settings, refine_optimism=3.0))
     assert higher.surrogate.kernel == "auto" and higher.refine_optimism == 3.0  # kept
 
 
 def test_a_log_l_with_a_three_way_term_keeps_the_matern() -> None:
     settings = CalibrationSettings()
-    switcher, after = _considered(_three_way, settings)
+    switcher, after = _considered(three_way, settings)
     assert after is settings
     assert switcher.switched_at is None
     (_, gain), = switcher.record().checks  # fmt: skip
@@ -81,7 +64,7 @@ def test_a_failed_additive_fit_switches_nothing(monkeypatch: pytest.MonkeyPatch)
 
     monkeypatch.setattr(kernel_switch, "additive_kernel_gain", failing)
     settings = CalibrationSettings()
-    switcher, after = _considered(_chain, settings)
+    switcher, after = _considered(chain, settings)
     assert after is settings and switcher.switched_at is None
     record = switcher.record()
     assert math.isnan(record.checks[0][1])
@@ -95,16 +78,16 @@ def test_a_later_comparison_needs_a_larger_gain(monkeypatch: pytest.MonkeyPatch)
     between = 0.5 * (ADDITIVE_GAIN_NATS + LATER_GAIN_NATS)
     monkeypatch.setattr(kernel_switch, "additive_kernel_gain", lambda *a, **k: between)
     settings = CalibrationSettings()
-    switcher, after = _considered(_three_way, settings)  # the first comparison: switches
+    switcher, after = _considered(three_way, settings)  # the first comparison: switches
     assert switcher.switched_at == 60 and after.surrogate.kernel == "auto"
     later = KernelSwitcher(settings, DIM, 200, local_phase=False)
     later.checks.append((40, -0.5))
     u = np.random.default_rng(0).random((60, DIM))
-    matern = fit_in_box(u, _three_way(u), UNIT_BOX, settings, 7)
-    assert later.consider(u, _three_way(u), UNIT_BOX, settings, 7, matern) is settings
+    matern = fit_in_box(u, three_way(u), UNIT_BOX, settings, 7)
+    assert later.consider(u, three_way(u), UNIT_BOX, settings, 7, matern) is settings
     assert later.switched_at is None and later.checks[-1] == (60, between)
     monkeypatch.setattr(kernel_switch, "additive_kernel_gain", lambda *a, **k: LATER_GAIN_NATS)
-    assert later.consider(u, _three_way(u), UNIT_BOX, settings, 7, matern) is not settings
+    assert later.consider(u, three_way(u), UNIT_BOX, settings, 7, matern) is not settings
     assert later.switched_at == 60
 
 
@@ -145,11 +128,11 @@ SMALL = CalibrationSettings(
 
 
 def _banana(w: np.ndarray) -> np.ndarray:
-    return _chain(np.atleast_2d(w))
+    return chain(np.atleast_2d(w))
 
 
 def _radial(w: np.ndarray) -> np.ndarray:
-    return _three_way(np.atleast_2d(w))
+    return three_way(np.atleast_2d(w))
 
 
 def test_calibrate_switches_on_a_banana_chain_and_records_it() -> None:
