@@ -117,12 +117,11 @@ def with_kernel_advice(
     settings: CalibrationSettings,
     final: Surrogate,
     boxed: bool = False,
-    laplace: Laplace | None = None,
 ) -> Reliability | None:
     """The finished run's verdict with the gain in its evidence where it advises
     (:func:`needs_kernel_advice`), else ``reliability`` itself; arguments as
-    :func:`additive_kernel_gain` (the final fit's). A fit that fails is logged and the
-    verdict kept: advice must not lose a finished result.
+    :func:`additive_kernel_gain` (the final fit's; only unboxed, so no Laplace bowl). A fit
+    that fails is logged and the verdict kept: advice must not lose a finished result.
 
     Not in a search box (``boxed``: a trust region or the local phase's box): there the
     GP models what is left of log L around the Laplace bowl on the few points in the box,
@@ -134,7 +133,7 @@ def with_kernel_advice(
         return reliability
     try:
         with torch_state(settings.num_threads):
-            gain = additive_kernel_gain(x, y, box, settings, FINAL_ITERATION, final, boxed, laplace)
+            gain = additive_kernel_gain(x, y, box, settings, FINAL_ITERATION, final)
     except Exception as error:  # BoTorch's ModelFittingError is an Exception
         logger.warning("the additive kernel could not be fitted for advice: %s", error)
         return reliability

@@ -464,7 +464,7 @@ def calibrate(
         ),
     )
     reliability = with_kernel_advice(  # would the additive kernel do better?
-        reliability, x, y, box, settings, surrogate, boxed, laplace
+        reliability, x, y, box, settings, surrogate, boxed
     )
     draws = from_unit(draws_u.numpy().reshape(-1, q), box).reshape(draws_u.shape)
     result = CalibrationResult(
