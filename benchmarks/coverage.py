@@ -242,6 +242,7 @@ def run_experiment(options: Options, experiment: int) -> dict[str, Any]:
         if result.local_search is None
         else (result.local_search.sd * (bounds[1] - bounds[0])).tolist(),
         "local_stop": None if result.local_search is None else result.local_search.stop_reason,
+        "kernel_switch": None if result.kernel_switch is None else result.kernel_switch.to_dict(),
         "n_evaluations": int(result.n_evaluations)
         + (0 if zoom_box is None else int(first.n_evaluations)),
         "zoom_box": None if zoom_box is None else zoom_box.tolist(),
@@ -340,6 +341,13 @@ def main(argv: list[str] | None = None) -> int:
         "statistics)",
     )
     parser.add_argument(
+        "--no-kernel-switch",
+        action="store_true",
+        help="keep the Matérn kernel throughout (CalibrationSettings.kernel_switch = False; "
+        "the switch compares only in a global search: without --local-search or "
+        "--trust-region)",
+    )
+    parser.add_argument(
         "--aggregate-only", action="store_true", help="figures of the finished experiments only"
     )
     args = parser.parse_args(argv)
@@ -380,6 +388,7 @@ def main(argv: list[str] | None = None) -> int:
         args.surrogate_mean,
         args.half_width_sd,
         args.unknown_tracks,
+        not args.no_kernel_switch,
     )
     out: Path = args.out
     folder = out / "experiments"
@@ -394,6 +403,7 @@ def main(argv: list[str] | None = None) -> int:
             "surrogate_mean": "auto",
             "half_width_sd": 8.0,
             "unknown_tracks": False,
+            "kernel_switch": True,
             **json.loads(config_path.read_text()),
         }
         if stored != dataclasses.asdict(options):

@@ -53,6 +53,7 @@ class Options:
     surrogate_mean: str = "auto"
     half_width_sd: float = 8.0
     unknown_tracks: bool = False
+    kernel_switch: bool = True
 
 
 def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
@@ -68,6 +69,7 @@ def demo_settings(options: Options, experiment: int) -> CalibrationSettings:
         local_search=options.local_search,
         surrogate=dataclasses.replace(settings.surrogate, mean=options.surrogate_mean),
         trust_region_half_width_sd=options.half_width_sd,
+        kernel_switch=options.kernel_switch,
     )
     if options.budget is not None:
         settings = dataclasses.replace(
