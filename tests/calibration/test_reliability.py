@@ -418,6 +418,8 @@ def test_multimodal_fires_from_two_separated_modes_and_leads_to_not_trusted() ->
     reason = multimodal(3)
     assert reason is not None and reason["code"] == "multimodal" and reason["modes"] == 3
     assert "3 separated modes" in reason["message"]
+    # found modes do not rule out another one that no evaluation came near (session 38)
+    assert "a further mode that no evaluation came near would not be seen" in reason["message"]
 
 
 def test_check_simulations_that_all_failed_are_not_a_trusted_check() -> None:
