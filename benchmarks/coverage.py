@@ -395,17 +395,12 @@ def main(argv: list[str] | None = None) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     config_path = out / "config.json"
     if config_path.exists():
-        stored = {
-            "reference_only": False,
-            "zoom": False,
-            "trust_region": False,
-            "local_search": False,
-            "surrogate_mean": "auto",
-            "half_width_sd": 8.0,
-            "unknown_tracks": False,
-            "kernel_switch": True,
-            **json.loads(config_path.read_text()),
+        defaults = {  # options added after a run was stored take their defaults
+            f.name: f.default
+            for f in dataclasses.fields(Options)
+            if f.default is not dataclasses.MISSING
         }
+        stored = {**defaults, **json.loads(config_path.read_text())}
         if stored != dataclasses.asdict(options):
             parser.error(
                 f"--out: {out} holds an SBC run with other options {stored}; "
