@@ -16,6 +16,7 @@ from susp_bo.calibration.mcmc import RandomWalkMetropolis, chain_diagnostics, ru
 from susp_bo.calibration.mode_jumps import (
     MixtureProposal,
     find_modes,
+    mixture_of_last_positions,
     modes_chains_stayed_in,
     stuck_modes,
 )
@@ -204,3 +205,35 @@ def test_a_mixture_of_chains_takes_each_modes_covariance_from_all_its_draws() ->
         torch.testing.assert_close(mixture.means[k], pooled.mean(0))
         cov = mixture.chols[k] @ mixture.chols[k].T
         torch.testing.assert_close(cov, torch.cov(pooled.T) * 2.25)
+
+
+def test_a_mixture_of_last_positions_fits_each_mode_to_the_draws_in_it() -> None:
+    """Chains that moved between two modes: a component per cluster of the last positions,
+    fitted to the draws nearest it, not to its chains' draws (which lie in both modes)."""
+    generator = torch.Generator().manual_seed(3)
+    draws = 0.02 * torch.randn(40, 30, 2, generator=generator, dtype=torch.float64)
+    in_b = torch.rand(40, 30, generator=generator) < 0.5  # each draw in A or in B
+    draws[in_b] += torch.tensor([0.7, 0.7], dtype=torch.float64)
+    draws += 0.1
+    mixture = mixture_of_last_positions(draws, checkpoints=30)
+    assert mixture is not None and mixture.n_modes == 2
+    centres = sorted(mixture.means.tolist())
+    assert centres[0] == pytest.approx([0.1, 0.1], abs=0.01)
+    assert centres[1] == pytest.approx([0.8, 0.8], abs=0.01)
+    sds = torch.diagonal(mixture.chols, dim1=1, dim2=2)
+    assert torch.all((sds > 0.02) & (sds < 0.04))  # 1.5 x 0.02 each, not the modes' spread
+    assert mixture_of_last_positions(draws[:, :, :] * 0.0 + draws[:1, :1, :]) is None
+
+
+def test_pieces_of_one_mode_are_counted_once_and_separated_modes_apart() -> None:
+    generator = torch.Generator().manual_seed(4)
+    cloud = 0.05 * torch.randn(4000, 2, generator=generator, dtype=torch.float64)
+    pieces = MixtureProposal.of(
+        cloud,
+        [torch.nonzero(cloud[:, 0] < 0).reshape(-1), torch.nonzero(cloud[:, 0] >= 0).reshape(-1)],
+    )
+    assert pieces.separated_modes(cloud, 0.01) == 1  # two halves of one Gaussian
+    far = torch.cat([cloud, cloud + 1.0])
+    both = MixtureProposal.of(far, [torch.arange(4000), torch.arange(4000, 8000)])
+    assert both.separated_modes(far, 0.01) == 2
+    assert both.separated_modes(torch.cat([cloud, cloud[:20] + 1.0]), 0.01) == 1  # 0.5 %

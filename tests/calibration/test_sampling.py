@@ -13,7 +13,11 @@ import pytest
 import torch
 
 from susp_bo.calibration.mcmc import RandomWalkMetropolis, chain_diagnostics, run_vectorized
-from susp_bo.calibration.mode_jumps import MixtureProposal, stuck_modes
+from susp_bo.calibration.mode_jumps import (
+    MixtureProposal,
+    mixture_of_last_positions,
+    stuck_modes,
+)
 from susp_bo.calibration.sampling import (
     HMC_CHAINS,
     MODE_PASS_JUMP_PROBABILITY,
@@ -74,12 +78,13 @@ class _ExactSurrogate:
     train_x: torch.Tensor
     train_y: np.ndarray = field(init=False)
     warping: _NoWarping = field(default_factory=_NoWarping)
+    log_l: Callable[[torch.Tensor], torch.Tensor] = _two_modes
 
     def __post_init__(self) -> None:
-        self.train_y = _two_modes(self.train_x).numpy()
+        self.train_y = self.log_l(self.train_x).numpy()
 
     def latent_mean(self, u: torch.Tensor) -> torch.Tensor:
-        return _two_modes(u)
+        return self.log_l(u)
 
 
 def _narrow_share(draws: torch.Tensor) -> float:
@@ -143,6 +148,55 @@ def test_a_mode_pass_that_did_not_mix_leaves_the_first_pass_bit_for_bit() -> Non
     assert float(diag["mode pass R-hat"]) > 1.05
 
 
+_THREE = torch.tensor([[0.25, 0.25], [0.75, 0.3], [0.5, 0.8]])
+_THREE_SHARES = (0.4, 0.4, 0.2)
+
+
+def _three_modes(u: torch.Tensor) -> torch.Tensor:
+    """Gaussians of sd 0.04 holding 0.4 / 0.4 / 0.2 of the mass: log L (m,) of (m x 2)."""
+    terms = [
+        math.log(w) - 0.5 * (((u - m) / 0.04) ** 2).sum(-1) for w, m in zip(_THREE_SHARES, _THREE)
+    ]
+    return torch.logsumexp(torch.stack(terms), 0)
+
+
+def _shares_of_three(draws: torch.Tensor) -> list[float]:
+    return [float(((draws - m).norm(dim=-1) < 0.2).double().mean()) for m in _THREE]
+
+
+def test_a_small_mode_the_jumps_folded_into_a_neighbour_gets_its_share_from_a_mode_pass() -> None:
+    """Session 38, trimodal seed 7: the jumps planned half-way through warm-up knew two
+    modes; the third, reached by fewer than 2 % of the chains, was folded into a
+    neighbour's component and held 1.3 % of the draws against the exact 20 %. "auto" runs a
+    mode pass over the clusters of the chains' last positions and keeps it: it mixed."""
+    evaluated = [[0.25, 0.25], [0.26, 0.25], [0.75, 0.3], [0.74, 0.3], [0.5, 0.9]]
+    surrogate = _ExactSurrogate(torch.tensor(evaluated, dtype=torch.float64), log_l=_three_modes)
+    starts = initial_positions(surrogate.train_x.numpy(), surrogate.train_y, 512, 0)
+    assert int(((starts - _THREE[2]).norm(dim=-1) < 0.2).sum()) == 4  # the premise
+    walk, walk_diag = sample_surrogate_posterior(surrogate, sampler="random_walk", **_TWO_MODES_RUN)
+    auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **_TWO_MODES_RUN)
+    # before: the jumps knew two modes, the small one kept about the chains it started with
+    assert walk_diag["modes"] == 2.0 and float(chain_diagnostics(walk)[0].max()) > 1.3
+    assert _shares_of_three(walk)[2] < 0.03
+    # after: the exact shares, three modes (the small one's pieces counted once), mixed
+    for share, exact in zip(_shares_of_three(auto), _THREE_SHARES):
+        assert abs(share - exact) < 0.03
+    assert diag["modes"] == 3.0 and diag["sampler"] == "random_walk"
+    assert diag["first pass R-hat"] == pytest.approx(float(chain_diagnostics(walk)[0].max()))
+    r_hat, ess = chain_diagnostics(auto)
+    assert float(r_hat.max()) <= 1.05 and float(ess.min()) >= 400
+    # the pass is the documented kernel: from the last positions, over their clusters
+    kernel = RandomWalkMetropolis(
+        surrogate_potential(surrogate),
+        walk[:, -1, :],
+        proposal_cov=(0.03**2) * torch.eye(2, dtype=torch.float64),
+        seed=MODE_PASS_SEED_OFFSET,
+        jump_probability=MODE_PASS_JUMP_PROBABILITY,
+        mixture=mixture_of_last_positions(walk),
+    )
+    assert torch.equal(auto, run_vectorized(kernel, 500, 200))
+
+
 def _bare_walk(
     surrogate: Surrogate | _ExactSurrogate,
     n_chains: int,
@@ -162,15 +216,18 @@ def _bare_walk(
     return run_vectorized(kernel, num_samples, warmup_steps), kernel.diagnostics()
 
 
-def test_auto_is_the_bare_random_walk_where_the_jumps_were_planned() -> None:
+def test_auto_is_the_bare_random_walk_where_the_jumps_were_planned_and_mixed() -> None:
     """Both modes at evaluated peaks: 27 of 512 chains start in the broad mode, enough for
-    the jumps planned half-way through warm-up. No second pass, no further random number:
-    the draws are the kernel's alone, bit for bit."""
+    the jumps planned half-way through warm-up, and 1 000 draws mix (at 500, split R-hat
+    1.051, and a mode pass runs). No second pass, no further random number: the draws are
+    the kernel's alone, bit for bit."""
     surrogate = _evaluated([0.8, 0.75], [0.3, 0.3])
     starts = initial_positions(surrogate.train_x.numpy(), surrogate.train_y, 512, 0)
     assert int(((starts - _BROAD).norm(dim=-1) < 0.3).sum()) == 27  # the premise
-    auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **_TWO_MODES_RUN)
-    walk, walk_diag = _bare_walk(surrogate, **_TWO_MODES_RUN)
+    run = {**_TWO_MODES_RUN, "num_samples": 1000}
+    auto, diag = sample_surrogate_posterior(surrogate, sampler="auto", **run)
+    walk, walk_diag = _bare_walk(surrogate, **run)
+    assert float(chain_diagnostics(walk)[0].max()) <= 1.05  # the premise: it mixed
     assert torch.equal(auto, walk)
     assert diag == {**walk_diag, "sampler": "random_walk"} and diag["modes"] == 2.0
 
@@ -276,7 +333,7 @@ def test_a_mode_with_no_share_of_the_mixed_draws_is_not_counted() -> None:
     draws, diag = _mode_pass(
         potential,
         first,
-        modes,
+        MixtureProposal.of_chains(first, modes),
         {"modes": 1.0, "sampler": "random_walk"},
         3.0,
         seed=0,
