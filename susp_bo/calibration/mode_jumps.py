@@ -230,12 +230,6 @@ class MixtureProposal:
         k = self.means.shape[0]
         return torch.logsumexp(self._component_log_densities(x), dim=0) - math.log(k)
 
-    def shares(self, x: torch.Tensor) -> torch.Tensor:
-        """(K,) share of the (m x q) points ``x`` whose most probable component is each one:
-        how the draws of a mixed pass are shared between the modes."""
-        nearest = self._component_log_densities(x).argmax(0)
-        return torch.bincount(nearest, minlength=self.means.shape[0]).double() / x.shape[0]
-
     def separated_modes(self, x: torch.Tensor, min_share: float) -> int:
         """The number of separated modes among the (m x q) points ``x`` (at least 1): the
         components that are the most probable one for at least ``min_share`` of them, two
@@ -354,7 +348,9 @@ def mixture_of_last_positions(
     clusters = find_modes(end, min_share=0.0, min_chains=STUCK_MIN_CHAINS)
     if len(clusters) < 2:
         return None
-    chol = torch.linalg.cholesky(_covariance(end))  # find_modes whitened the same points
+    chol, info = torch.linalg.cholesky_ex(_covariance(end))
+    if int(info) != 0:  # cannot happen where find_modes split (it whitened the same points)
+        return None
 
     def whitened(x: torch.Tensor) -> torch.Tensor:
         return torch.linalg.solve_triangular(chol, (x - end.mean(0)).T, upper=False).T

@@ -53,7 +53,9 @@ Two samplers (``sampler``):
   512 chains starting in the small mode, the tests) the random walk gave it 0.01 of the
   draws (R-hat 1.53) and the mode pass 0.20 (R-hat 1.03). ``modes`` then counts the
   mixture's components holding ``MODE_MIN_SHARE`` of the pass's draws, pieces of one mode
-  (less than 6 pooled sds apart) counted once.
+  (less than 6 pooled sds apart) counted once, and never fewer than the jumps knew. Where
+  the last positions form a single cluster, nothing is added and the draws stay as they
+  were (``poor_mixing`` and ``multimodal`` then say so).
 
   When the second pass did not mix either the random walk's draws stay, bit for bit: on
   the curved target (seed 0) HMC chains that did not mix (R-hat 1.40) sat in places the
@@ -191,13 +193,17 @@ def _mode_pass(
     backend: Backend,
     thin: int,
     progress: bool,
+    least_modes: int = 1,
 ) -> tuple[torch.Tensor, dict[str, float | str]]:
     """The mode pass (module docstring): its draws and diagnostics where they mixed, else the
     first pass's ``draws`` (chains x draws x q) and ``diag`` as they were.
 
     The diagnostics carry ``mode pass R-hat`` (the pass's worst split R-hat) either way;
-    kept, the pass's kernel diagnostics (``modes``: the mixture's components) and ``first
-    pass R-hat``; not kept, ``mode pass modes`` (its components).
+    kept, the pass's kernel diagnostics, ``modes`` (the separated modes among its draws,
+    :meth:`~.mode_jumps.MixtureProposal.separated_modes`, and at least ``least_modes``: the
+    modes the first pass's jumps knew, each split of which was 6 pooled sds wide) and
+    ``first pass R-hat``; not kept, ``mode pass modes`` (the number of its mixture's
+    components, pieces of one mode each counted).
     """
     q = draws.shape[2]
     kernel = RandomWalkMetropolis(
@@ -216,7 +222,8 @@ def _mode_pass(
     kept: dict[str, float | str] = {**kernel.diagnostics(), "sampler": "random_walk"}
     # modes that hold a share of the mixed draws (a cluster two chains were stuck in, at a
     # bump of the surrogate the exact chain barely visits, is no mode of the posterior)
-    kept["modes"] = float(mixture.separated_modes(second.reshape(-1, q), MODE_MIN_SHARE))
+    separated = mixture.separated_modes(second.reshape(-1, q), MODE_MIN_SHARE)
+    kept["modes"] = float(max(least_modes, separated))
     return second, {**kept, "first pass R-hat": walk_r_hat, "mode pass R-hat": r_hat}
 
 
@@ -284,11 +291,14 @@ def sample_surrogate_posterior(
             "thin": thin,
             "progress": progress,
         }
-        if float(diag["modes"]) > 1.0:  # the jumps knew some modes, and did not mix
+        known = int(diag["modes"])
+        if known > 1:  # the jumps knew some modes, and the chains did not mix
             mixture = mixture_of_last_positions(draws)
-            if mixture is None:
+            if mixture is None:  # the last positions form one cluster: no mode to add
                 return draws, diag
-            return _mode_pass(potential, draws, mixture, diag, walk_r_hat, **mode_pass)
+            return _mode_pass(
+                potential, draws, mixture, diag, walk_r_hat, **mode_pass, least_modes=known
+            )
         modes = stuck_modes(draws)
         if len(modes) >= 2:  # before HMC, and instead of it (module docstring)
             return _mode_pass(

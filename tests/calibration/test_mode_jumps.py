@@ -222,10 +222,12 @@ def test_a_mixture_of_last_positions_fits_each_mode_to_the_draws_in_it() -> None
     assert centres[1] == pytest.approx([0.8, 0.8], abs=0.01)
     sds = torch.diagonal(mixture.chols, dim1=1, dim2=2)
     assert torch.all((sds > 0.02) & (sds < 0.04))  # 1.5 x 0.02 each, not the modes' spread
-    assert mixture_of_last_positions(draws[:, :, :] * 0.0 + draws[:1, :1, :]) is None
+    assert mixture_of_last_positions(draws[:1, :1, :].expand_as(draws).clone()) is None
 
 
 def test_pieces_of_one_mode_are_counted_once_and_separated_modes_apart() -> None:
+    """Two halves of one Gaussian (components of a mode split into pieces) count as one
+    mode; two clouds far apart count as two, unless one holds under ``min_share``."""
     generator = torch.Generator().manual_seed(4)
     cloud = 0.05 * torch.randn(4000, 2, generator=generator, dtype=torch.float64)
     pieces = MixtureProposal.of(

@@ -347,3 +347,28 @@ def test_a_mode_with_no_share_of_the_mixed_draws_is_not_counted() -> None:
     share = float(((draws - _SPECK).norm(dim=-1) < 0.05).double().mean())
     assert 0.001 < share < 0.01
     assert diag["modes"] == 1.0
+
+
+def test_a_kept_mode_pass_counts_no_fewer_modes_than_the_jumps_knew() -> None:
+    """Review, session 39: ``modes`` after a mode pass merges components whose draws lie
+    under 6 pooled sds apart; where the first pass's jumps had split modes (each split 6
+    pooled sds wide), the count keeps at least that many, so ``multimodal`` cannot vanish."""
+    generator = torch.Generator().manual_seed(5)
+    first = _PEAK + 0.03 * torch.randn(64, 200, 2, generator=generator, dtype=torch.float64)
+    halves = [torch.nonzero(first[:, -1, 0] < _PEAK[0]).reshape(-1)]
+    halves.append(torch.nonzero(first[:, -1, 0] >= _PEAK[0]).reshape(-1))
+    mixture = MixtureProposal.of_chains(first, halves)  # two pieces of one Gaussian mode
+
+    def potential(u: torch.Tensor) -> torch.Tensor:
+        return 0.5 * (((u - _PEAK) / 0.03) ** 2).sum(-1)
+
+    run = {"seed": 0, "num_samples": 400, "warmup_steps": 100, "backend": "vectorized"}
+    counts = []
+    for least in (1, 2):
+        _, diag = _mode_pass(
+            potential, first, mixture, {"modes": 1.0}, 1.2, **run, thin=1, progress=False,
+            least_modes=least,
+        )  # fmt: skip
+        assert "first pass R-hat" in diag  # the premise: the pass mixed and was kept
+        counts.append(diag["modes"])
+    assert counts == [1.0, 2.0]
