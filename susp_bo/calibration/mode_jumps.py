@@ -40,6 +40,7 @@ has one component per cluster of the last positions instead
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -259,6 +260,36 @@ class MixtureProposal:
         return self.means[which] + torch.einsum("nij,nj->ni", self.chols[which], noise)
 
 
+def _checkpoints(draws: torch.Tensor, count: int) -> torch.Tensor:
+    """Indices of ``count`` evenly spaced draws per chain, the last included (distinct)."""
+    return torch.linspace(0, draws.shape[1] - 1, max(count, 1)).round().long().unique()
+
+
+def _last_position_clusters(
+    draws: torch.Tensor,
+) -> tuple[list[torch.Tensor], torch.Tensor, Callable[[torch.Tensor], torch.Tensor]] | None:
+    """The separated clusters of the chains' last positions (:func:`find_modes`, any cluster
+    of :data:`STUCK_MIN_CHAINS` chains counting), each chain's cluster label, and the
+    whitening by the last positions' covariance (points (m x q) -> (m x q)); None where
+    they form a single cluster."""
+    end = draws[:, -1, :]
+    clusters = find_modes(end, min_share=0.0, min_chains=STUCK_MIN_CHAINS)
+    if len(clusters) < 2:
+        return None
+    chol, info = torch.linalg.cholesky_ex(_covariance(end))
+    if int(info) != 0:  # cannot happen where find_modes split (it whitened the same points)
+        return None
+    centre = end.mean(0)
+
+    def whitened(x: torch.Tensor) -> torch.Tensor:
+        return torch.linalg.solve_triangular(chol, (x - centre).T, upper=False).T
+
+    label = torch.empty(end.shape[0], dtype=torch.long)
+    for k, c in enumerate(clusters):
+        label[c] = k
+    return clusters, label, whitened
+
+
 def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor]:
     """Separated modes among the chains' last positions that no chain moved between.
 
@@ -285,20 +316,10 @@ def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor
         Index tensors of chains, one per mode, ordered by their first chain (a single one of
         every chain when the chains did not stay apart).
     """
-    end = draws[:, -1, :]
-    clusters = find_modes(end, min_share=0.0, min_chains=STUCK_MIN_CHAINS)
-    if len(clusters) < 2:
-        return clusters
-    chol, info = torch.linalg.cholesky_ex(_covariance(end))
-    if int(info) != 0:  # cannot happen where find_modes split (it whitened the same points)
-        return [torch.arange(end.shape[0])]
-
-    def whitened(x: torch.Tensor) -> torch.Tensor:
-        return torch.linalg.solve_triangular(chol, (x - end.mean(0)).T, upper=False).T
-
-    label = torch.empty(end.shape[0], dtype=torch.long)
-    for k, c in enumerate(clusters):
-        label[c] = k
+    split = _last_position_clusters(draws)
+    if split is None:
+        return [torch.arange(draws.shape[0])]
+    clusters, label, whitened = split
     parent = list(range(len(clusters)))
 
     def root(k: int) -> int:
@@ -306,9 +327,8 @@ def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor
             k = parent[k]
         return k
 
-    z_end = whitened(end)
-    steps = torch.linspace(0, draws.shape[1] - 1, max(checkpoints, 1)).round().long()
-    for j in steps.unique().tolist():
+    z_end = whitened(draws[:, -1, :])
+    for j in _checkpoints(draws, checkpoints).tolist():
         near = label[torch.cdist(whitened(draws[:, j, :]), z_end).argmin(1)]
         for a, b in torch.unique(torch.stack([label, near], 1)[near != label], dim=0).tolist():
             parent[root(a)] = root(b)
@@ -344,23 +364,12 @@ def mixture_of_last_positions(
     Returns:
         The mixture, or None where the last positions form a single cluster.
     """
-    end = draws[:, -1, :]
-    clusters = find_modes(end, min_share=0.0, min_chains=STUCK_MIN_CHAINS)
-    if len(clusters) < 2:
+    split = _last_position_clusters(draws)
+    if split is None:
         return None
-    chol, info = torch.linalg.cholesky_ex(_covariance(end))
-    if int(info) != 0:  # cannot happen where find_modes split (it whitened the same points)
-        return None
-
-    def whitened(x: torch.Tensor) -> torch.Tensor:
-        return torch.linalg.solve_triangular(chol, (x - end.mean(0)).T, upper=False).T
-
-    label = torch.empty(end.shape[0], dtype=torch.long)
-    for k, c in enumerate(clusters):
-        label[c] = k
-    steps = torch.linspace(0, draws.shape[1] - 1, max(checkpoints, 1)).round().long().unique()
-    points = draws[:, steps, :].reshape(-1, draws.shape[2])
-    nearest = label[torch.cdist(whitened(points), whitened(end)).argmin(1)]
+    clusters, label, whitened = split
+    points = draws[:, _checkpoints(draws, checkpoints), :].reshape(-1, draws.shape[2])
+    nearest = label[torch.cdist(whitened(points), whitened(draws[:, -1, :])).argmin(1)]
     rows = [torch.nonzero(nearest == k).reshape(-1) for k in range(len(clusters))]
     return MixtureProposal.of(points, rows, inflation)
 

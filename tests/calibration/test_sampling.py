@@ -102,6 +102,22 @@ _FEW_IN_BROAD = ([0.8, 0.75], [0.805, 0.75], [0.38, 0.3])
 _TWO_MODES_RUN = {"n_chains": 512, "warmup_steps": 200, "num_samples": 500, "seed": 0}
 
 
+def _documented_mode_pass(
+    surrogate: _ExactSurrogate, walk: torch.Tensor, mixture: MixtureProposal
+) -> torch.Tensor:
+    """The mode pass as documented, for ``_TWO_MODES_RUN`` (seed 0): the random walk from the
+    first pass's last positions, seeded 0 + the offset, jumping with ``mixture``."""
+    kernel = RandomWalkMetropolis(
+        surrogate_potential(surrogate),
+        walk[:, -1, :],
+        proposal_cov=(0.03**2) * torch.eye(2, dtype=torch.float64),
+        seed=MODE_PASS_SEED_OFFSET,
+        jump_probability=MODE_PASS_JUMP_PROBABILITY,
+        mixture=mixture,
+    )
+    return run_vectorized(kernel, 500, 200)
+
+
 def test_a_mode_too_few_chains_reached_gets_its_exact_share_from_the_mode_pass() -> None:
     """The outside probe's F3: chains started almost all in the narrow mode and stayed
     there, 98 % of the draws against the exact 50 % (R-hat 3.2). "auto" jumps between the
@@ -124,15 +140,8 @@ def test_a_mode_too_few_chains_reached_gets_its_exact_share_from_the_mode_pass()
     assert float(r_hat.max()) <= 1.05
     assert float(ess.min()) >= 400
     # the pass is the documented kernel: from the last positions, seed + the offset
-    kernel = RandomWalkMetropolis(
-        surrogate_potential(surrogate),
-        walk[:, -1, :],
-        proposal_cov=(0.03**2) * torch.eye(2, dtype=torch.float64),
-        seed=MODE_PASS_SEED_OFFSET,
-        jump_probability=MODE_PASS_JUMP_PROBABILITY,
-        mixture=MixtureProposal.of_chains(walk, stuck_modes(walk)),
-    )
-    assert torch.equal(auto, run_vectorized(kernel, 500, 200))
+    mixture = MixtureProposal.of_chains(walk, stuck_modes(walk))
+    assert torch.equal(auto, _documented_mode_pass(surrogate, walk, mixture))
 
 
 def test_a_mode_pass_that_did_not_mix_leaves_the_first_pass_bit_for_bit() -> None:
@@ -186,15 +195,9 @@ def test_a_small_mode_the_jumps_folded_into_a_neighbour_gets_its_share_from_a_mo
     r_hat, ess = chain_diagnostics(auto)
     assert float(r_hat.max()) <= 1.05 and float(ess.min()) >= 400
     # the pass is the documented kernel: from the last positions, over their clusters
-    kernel = RandomWalkMetropolis(
-        surrogate_potential(surrogate),
-        walk[:, -1, :],
-        proposal_cov=(0.03**2) * torch.eye(2, dtype=torch.float64),
-        seed=MODE_PASS_SEED_OFFSET,
-        jump_probability=MODE_PASS_JUMP_PROBABILITY,
-        mixture=mixture_of_last_positions(walk),
-    )
-    assert torch.equal(auto, run_vectorized(kernel, 500, 200))
+    mixture = mixture_of_last_positions(walk)
+    assert mixture is not None
+    assert torch.equal(auto, _documented_mode_pass(surrogate, walk, mixture))
 
 
 def _bare_walk(
