@@ -238,19 +238,13 @@ class MixtureProposal:
         (pieces of one mode, as :func:`mixture_of_last_positions` can give)."""
         nearest = self._component_log_densities(x).argmax(0)
         shares = torch.bincount(nearest, minlength=self.n_modes).double() / x.shape[0]
-        held = [k for k in range(self.n_modes) if float(shares[k]) >= min_share]
-        parent = {k: k for k in held}
-
-        def root(k: int) -> int:
-            while parent[k] != k:
-                k = parent[k]
-            return k
-
-        for i, a in enumerate(held):
-            for b in held[i + 1 :]:
-                if separation(x[nearest == a], x[nearest == b]) < SEPARATION:
-                    parent[root(a)] = root(b)
-        return max(1, len({root(k) for k in held}))
+        held = {k: x[nearest == k] for k in range(self.n_modes) if float(shares[k]) >= min_share}
+        parent = list(range(self.n_modes))
+        for a in held:
+            for b in held:
+                if a < b and separation(held[a], held[b]) < SEPARATION:
+                    parent[_root(parent, a)] = _root(parent, b)
+        return max(1, len({_root(parent, k) for k in held}))
 
     def draw(self, n: int, generator: torch.Generator) -> torch.Tensor:
         """(n x q) draws: a component uniformly at random, then its Gaussian."""
@@ -258,6 +252,15 @@ class MixtureProposal:
         which = torch.randint(k, (n,), generator=generator)
         noise = torch.randn((n, q), generator=generator, dtype=self.means.dtype)
         return self.means[which] + torch.einsum("nij,nj->ni", self.chols[which], noise)
+
+
+def _root(parent: list[int], k: int) -> int:
+    """The representative of ``k``'s group in a union-find forest (``parent[k] == k`` at a
+    root): the groups of clusters joined by :func:`stuck_modes` and of components joined
+    by :meth:`MixtureProposal.separated_modes`."""
+    while parent[k] != k:
+        k = parent[k]
+    return k
 
 
 def _checkpoints(draws: torch.Tensor, count: int) -> torch.Tensor:
@@ -321,20 +324,14 @@ def stuck_modes(draws: torch.Tensor, checkpoints: int = 10) -> list[torch.Tensor
         return [torch.arange(draws.shape[0])]
     clusters, label, whitened = split
     parent = list(range(len(clusters)))
-
-    def root(k: int) -> int:
-        while parent[k] != k:
-            k = parent[k]
-        return k
-
     z_end = whitened(draws[:, -1, :])
     for j in _checkpoints(draws, checkpoints).tolist():
         near = label[torch.cdist(whitened(draws[:, j, :]), z_end).argmin(1)]
         for a, b in torch.unique(torch.stack([label, near], 1)[near != label], dim=0).tolist():
-            parent[root(a)] = root(b)
+            parent[_root(parent, a)] = _root(parent, b)
     groups: dict[int, list[torch.Tensor]] = {}
     for k, c in enumerate(clusters):
-        groups.setdefault(root(k), []).append(c)
+        groups.setdefault(_root(parent, k), []).append(c)
     modes = [torch.sort(torch.cat(g)).values for g in groups.values()]
     return sorted(modes, key=lambda c: int(c[0]))
 
