@@ -23,6 +23,10 @@ another one (its best point comes within ``radius`` of the top of a basin known 
 or when its share of the phase's budget is spent (:func:`basin_phase`). A unimodal log L
 whose surrogate has a single basin among those points (the usual case) costs one gradient
 ascent and changes nothing else.
+
+With ``hunt_beta`` > 0 (opt-in), where the surrogate has two or more peaks confirmed by
+evaluations, the phase also hunts for modes no evaluation came near (:mod:`.mode_hunt`,
+session 41).
 """
 
 from __future__ import annotations
@@ -35,7 +39,9 @@ import numpy as np
 import torch
 
 from susp_bo.calibration.acquisition import propose_ei_batch
+from susp_bo.calibration.mode_hunt import CONFIRM_GAIN, hunt_batch, surrogate_peaks
 from susp_bo.calibration.surrogate import Surrogate
+from susp_bo.calibration.trust_region import posterior_reach
 
 
 @dataclass(frozen=True)
@@ -57,6 +63,16 @@ class BasinSettings:
         budget_fraction: share of the evaluations left when EGO ends that the phase may
             use, in (0, 1); shared equally between the basins found (a climb's share is
             what is left over the number of basins still to climb).
+        hunt_beta: where the surrogate's mean has two or more peaks, each confirmed by an
+            evaluation within 2 nats of its top (:func:`.mode_hunt.surrogate_peaks`),
+            one batch first goes to the local maxima of mean + ``hunt_beta`` sd
+            (:mod:`.mode_hunt`), and again after each such batch while the surrogate still
+            has two such peaks and a maximum of that bound away from the known modes
+            reaches the posterior; 0 (the default) turns that off (>= 0); 3 is the measured
+            setting (:mod:`.mode_hunt`: it keeps modes a trimodal target lost, and costs a
+            curved one accuracy, so it is not the default).
+        hunt_fraction: share of the phase's evaluations those batches may use, in (0, 1]
+            (climbs may use them too; the hunts' own count is kept apart).
     """
 
     radius: float = 0.1
@@ -67,6 +83,8 @@ class BasinSettings:
     improvement: float = 1.0
     max_basins: int = 4
     budget_fraction: float = 0.4
+    hunt_beta: float = 0.0
+    hunt_fraction: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0.0 < self.radius < 1.0:
@@ -89,6 +107,10 @@ class BasinSettings:
             raise ValueError(f"basin max_basins: {self.max_basins} must be an integer >= 1")
         if not 0.0 < self.budget_fraction < 1.0:
             raise ValueError(f"basin budget_fraction: {self.budget_fraction} must be in (0, 1)")
+        if not self.hunt_beta >= 0.0:
+            raise ValueError(f"basin hunt_beta: {self.hunt_beta} must be >= 0 (0: no hunt)")
+        if not 0.0 < self.hunt_fraction <= 1.0:
+            raise ValueError(f"basin hunt_fraction: {self.hunt_fraction} must be in (0, 1]")
 
 
 def _chebyshev(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -131,6 +153,29 @@ def _peaked(surrogate: Surrogate, ends: np.ndarray, step: float, drop: float) ->
     return np.all(falls | ~moved, axis=1)
 
 
+def ascent_ends(
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    surrogate: Surrogate,
+    radius: float,
+    depth: float,
+    min_drop: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the evaluated points within ``depth`` nats of the best climb the surrogate to.
+
+    Returns:
+        The indices of those points (m,), best first; the ends of their ascents on the
+        surrogate's mean (m x q, :func:`surrogate_ascent`); and whether each end is a peak
+        (m,): the surrogate's log L falls by ``min_drop`` nats ``radius`` away along every
+        axis. Deterministic: no random draw.
+    """
+    finite = np.flatnonzero(np.isfinite(y))
+    keep = finite[y[finite] >= np.max(y[finite]) - depth]
+    keep = keep[np.argsort(-y[keep], kind="stable")]  # best first
+    ends = surrogate_ascent(surrogate, x_unit[keep])
+    return keep, ends, _peaked(surrogate, ends, radius, min_drop)
+
+
 def secondary_basins(
     x_unit: np.ndarray,
     y: np.ndarray,
@@ -167,13 +212,9 @@ def secondary_basins(
         may be highest (mean + 2 sd at its end) first.
     """
     y = np.asarray(y, dtype=np.float64)
-    finite = np.flatnonzero(np.isfinite(y))
-    if finite.size < 2:
+    if np.isfinite(y).sum() < 2:
         return []
-    keep = finite[y[finite] >= np.max(y[finite]) - depth]
-    keep = keep[np.argsort(-y[keep], kind="stable")]  # best first
-    ends = surrogate_ascent(surrogate, x_unit[keep])
-    peaked = _peaked(surrogate, ends, radius, min_drop)
+    keep, ends, peaked = ascent_ends(x_unit, y, surrogate, radius, depth, min_drop)
     explored = ends[:1] if exclude is None or len(exclude) == 0 else np.vstack([ends[:1], exclude])
     done = np.empty((0, x_unit.shape[1])) if exclude is None else np.asarray(exclude)
     with torch.no_grad():
@@ -203,7 +244,7 @@ class ClimbReport:
     start_log_likelihood: float
     end_log_likelihood: float
     n_evaluations: int
-    stop_reason: str  # "narrow", "merged" or "budget"
+    stop_reason: str  # "narrow", "merged" or "budget"; "hunt": the batch of .mode_hunt
 
 
 def climb(
@@ -299,6 +340,13 @@ def basin_phase(
     Each round refits the surrogate on all data, lists the basins not explored yet
     (:func:`secondary_basins`) and climbs the first (:func:`climb`) with an equal share of
     the budget left among the basins still to climb; its start and end are then explored.
+    Before each round (the first, and after each climb, which may have confirmed a second
+    mode), while the surrogate's mean has two or more confirmed peaks among the points
+    within ``settings.depth`` (:func:`.mode_hunt.surrogate_peaks`), ``settings.hunt_beta``
+    > 0 and ``settings.hunt_fraction`` of ``budget`` is not spent, batches go where a mode
+    may hide (:func:`.mode_hunt.hunt_batch`), one per refit; each is reported as a climb
+    with ``stop_reason`` "hunt" (start: the best point; end: the batch's best point). With
+    one confirmed peak throughout, the phase is what it was without the hunt, bit for bit.
 
     Args:
         x_unit: (n x q) evaluated points, unit cube of C_w; y: (n,) their log L.
@@ -314,12 +362,26 @@ def basin_phase(
     explored = np.empty((0, x_unit.shape[1]))
     climbs: list[ClimbReport] = []
     used = 0
-    while used < budget and len(climbs) < settings.max_basins:
+    hunting = settings.hunt_beta > 0.0
+    hunt_left = int(settings.hunt_fraction * budget)  # the hunts' share; climbs do not use it up
+    climbed = 0
+    while used < budget and climbed < settings.max_basins:
         surrogate = fit(x_unit, y)
+        if hunting:
+            size = min(hunt_left, budget - used)
+            x_unit, y, hunt = _hunt(
+                x_unit, y, surrogate, size, batch_size, settings, evaluate, seed
+            )
+            if hunt is not None:
+                used += hunt.n_evaluations
+                hunt_left -= hunt.n_evaluations
+                climbs.append(hunt)
+                continue  # refit with the hunt's evaluations, and hunt again
+            hunting = False
         found = secondary_basins(x_unit, y, surrogate, settings.radius, settings.depth, explored)
         if not found:
             break
-        share = max(1, min(len(found), settings.max_basins - len(climbs)))
+        share = max(1, min(len(found), settings.max_basins - climbed))
         known = np.vstack([x_unit[int(np.nanargmax(y))][None], explored])
         x_unit, y, report = climb(
             x_unit,
@@ -338,4 +400,58 @@ def basin_phase(
         used += report.n_evaluations
         explored = np.vstack([explored, report.start[None], report.end[None]])
         climbs.append(report)
+        climbed += 1
+        hunting = settings.hunt_beta > 0.0  # a climb may have confirmed a second mode
     return climbs
+
+
+def _hunt(
+    x_unit: np.ndarray,
+    y: np.ndarray,
+    surrogate: Surrogate,
+    budget: int,
+    batch_size: int,
+    settings: BasinSettings,
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    seed: Callable[[], int],
+) -> tuple[np.ndarray, np.ndarray, ClimbReport | None]:
+    """The hunt batch of :mod:`.mode_hunt` where the surrogate has two confirmed peaks or more.
+
+    Returns:
+        (x_unit, y) with the hunt's evaluations appended, and its report (None, and the
+        data unchanged, where the surrogate has one peak or no upper bound reaches).
+    """
+    y = np.asarray(y, dtype=np.float64)
+    if budget < 1 or np.isfinite(y).sum() < 2:
+        return x_unit, y, None
+    keep, ends, peaked = ascent_ends(x_unit, y, surrogate, settings.radius, settings.depth)
+    with torch.no_grad():
+        tops = surrogate.log_likelihood_mean(torch.as_tensor(ends)).numpy()
+    peaks = surrogate_peaks(ends, peaked, settings.radius, tops <= y[keep] + CONFIRM_GAIN)
+    if len(peaks) < 2:
+        return x_unit, y, None
+    best = int(np.nanargmax(y))
+    q = x_unit.shape[1]
+    new_x = hunt_batch(
+        surrogate,
+        float(y[best]),
+        posterior_reach(q),
+        min(batch_size, budget),
+        settings.radius,
+        settings.hunt_beta,
+        seed(),
+        ends,  # where the evaluated points climb to: modes known already
+    )
+    if not len(new_x):
+        return x_unit, y, None
+    new_y = np.asarray(evaluate(new_x), dtype=np.float64).reshape(-1)
+    top = int(np.nanargmax(new_y)) if np.isfinite(new_y).any() else 0
+    report = ClimbReport(
+        start=x_unit[best].copy(),
+        end=new_x[top].copy(),
+        start_log_likelihood=float(y[best]),
+        end_log_likelihood=float(new_y[top]),
+        n_evaluations=len(new_y),
+        stop_reason="hunt",
+    )
+    return np.vstack([x_unit, new_x]), np.concatenate([y, new_y]), report

@@ -10,6 +10,9 @@
       evaluated points that head basins of the surrogate other than the best point's
       (:mod:`.basin_search`: modes EGO saw only at their fringe), up to
       ``basin.budget_fraction`` of the evaluations left; nothing when there is none;
+      with ``basin.hunt_beta`` > 0 (opt-in), where the surrogate has two confirmed peaks
+      it also hunts, at the maxima of its upper bound, for modes no evaluation came near
+      (:mod:`.mode_hunt`);
    a'. with ``settings.local_search`` and an evaluator that exposes its spectra
       (:class:`.local_search.SpectraEvaluator`, as the study's does): when EGO ends,
       trust-region Gauss–Newton on the spectra from the best point (up to

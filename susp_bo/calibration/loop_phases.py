@@ -80,6 +80,14 @@ def run_basin_phase(
             settings.acquisition_raw_samples,
         )
     for report in climbs:
+        if report.stop_reason == "hunt":
+            logger.info(
+                "basin search: the surrogate has two or more confirmed peaks; %d evaluations "
+                "where a mode may hide (its upper bound reaches the posterior), best log L %.6g",
+                report.n_evaluations,
+                report.end_log_likelihood,
+            )
+            continue
         logger.info(
             "basin search: climbed from log L %.6g to %.6g in %d evaluations (%s)",
             report.start_log_likelihood,

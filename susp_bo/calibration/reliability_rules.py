@@ -368,7 +368,7 @@ def multimodal(modes: int) -> Reason | None:
             f"the posterior has {modes} separated modes: how the mass is shared between them "
             "rests on the surrogate where the search may not have looked, no held-out point "
             "checks each mode, and a further mode that no evaluation came near would not be "
-            "seen (on a three-mode test target one mode was lost in 3 of 9 runs)"
+            "seen (on a three-mode test target one mode was lost in 2 of 9 runs)"
         ),
         "modes": int(modes),
     }
