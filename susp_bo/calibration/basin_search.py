@@ -39,6 +39,7 @@ import numpy as np
 import torch
 
 from susp_bo.calibration.acquisition import propose_ei_batch
+from susp_bo.calibration.cube_ascent import chebyshev, projected_ascent
 from susp_bo.calibration.mode_hunt import CONFIRM_GAIN, hunt_batch, surrogate_peaks
 from susp_bo.calibration.surrogate import Surrogate
 from susp_bo.calibration.trust_region import posterior_reach
@@ -113,11 +114,6 @@ class BasinSettings:
             raise ValueError(f"basin hunt_fraction: {self.hunt_fraction} must be in (0, 1]")
 
 
-def _chebyshev(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(n x m) max-norm distances between the rows of a (n x q) and b (m x q)."""
-    return np.max(np.abs(a[:, None, :] - b[None, :, :]), axis=-1)
-
-
 def surrogate_ascent(surrogate: Surrogate, u: np.ndarray, steps: int = 300) -> np.ndarray:
     """Where gradient ascent on the surrogate's latent mean takes each start (unit cube).
 
@@ -129,15 +125,7 @@ def surrogate_ascent(surrogate: Surrogate, u: np.ndarray, steps: int = 300) -> n
     Returns:
         (n x q) end points: the surrogate's local maxima the starts lead to.
     """
-    x = torch.tensor(u, dtype=torch.float64, requires_grad=True)
-    optimiser = torch.optim.Adam([x], lr=0.01)
-    for _ in range(steps):
-        optimiser.zero_grad()
-        (-surrogate.latent_mean(x).sum()).backward()
-        optimiser.step()
-        with torch.no_grad():
-            x.clamp_(0.0, 1.0)
-    return x.detach().numpy()
+    return projected_ascent(surrogate.latent_mean, u, steps)
 
 
 def _peaked(surrogate: Surrogate, ends: np.ndarray, step: float, drop: float) -> np.ndarray:
@@ -185,6 +173,7 @@ def secondary_basins(
     exclude: np.ndarray | None = None,
     min_drop: float = 0.5,
     min_gain: float = 2.0,
+    ascent: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> list[int]:
     """Evaluated points heading basins of the surrogate other than the best point's.
 
@@ -206,6 +195,7 @@ def secondary_basins(
         min_drop: nats the surrogate's log L must fall around a basin's end (>= 0).
         min_gain: a basin whose top may not beat its best evaluated point by this many
             nats (the surrogate's mean + 2 sd at the end) is explored already.
+        ascent: :func:`ascent_ends` of these data and surrogate, if computed already.
 
     Returns:
         The best evaluated point of each remaining basin (indices), the basin whose top
@@ -214,7 +204,9 @@ def secondary_basins(
     y = np.asarray(y, dtype=np.float64)
     if np.isfinite(y).sum() < 2:
         return []
-    keep, ends, peaked = ascent_ends(x_unit, y, surrogate, radius, depth, min_drop)
+    keep, ends, peaked = (
+        ascent_ends(x_unit, y, surrogate, radius, depth, min_drop) if ascent is None else ascent
+    )
     explored = ends[:1] if exclude is None or len(exclude) == 0 else np.vstack([ends[:1], exclude])
     done = np.empty((0, x_unit.shape[1])) if exclude is None else np.asarray(exclude)
     with torch.no_grad():
@@ -222,10 +214,10 @@ def secondary_basins(
     upper = (mean + 2.0 * sd).numpy()
     heads: list[tuple[float, int]] = []
     for i in range(1, len(keep)):
-        if np.any(_chebyshev(ends[i][None], explored)[0] < radius):
+        if np.any(chebyshev(ends[i][None], explored)[0] < radius):
             continue  # a basin seen already (from a higher point: points come best first)
         explored = np.vstack([explored, ends[i][None]])
-        if len(done) and np.any(_chebyshev(x_unit[keep[i]][None], done)[0] < radius):
+        if len(done) and np.any(chebyshev(x_unit[keep[i]][None], done)[0] < radius):
             continue
         if upper[i] < y[keep[i]] + min_gain:
             continue  # its top is evaluated already
@@ -288,7 +280,7 @@ def climb(
         if half < settings.min_half_width:
             reason = "narrow"
             break
-        if len(known) and np.any(_chebyshev(x_unit[best][None], known)[0] < settings.radius):
+        if len(known) and np.any(chebyshev(x_unit[best][None], known)[0] < settings.radius):
             reason = "merged"
             break
         surrogate = fit(x_unit, y)
@@ -367,9 +359,10 @@ def basin_phase(
     climbed = 0
     while used < budget and climbed < settings.max_basins:
         surrogate = fit(x_unit, y)
+        ascent = None
         if hunting:
             size = min(hunt_left, budget - used)
-            x_unit, y, hunt = _hunt(
+            x_unit, y, hunt, ascent = _hunt(
                 x_unit, y, surrogate, size, batch_size, settings, evaluate, seed
             )
             if hunt is not None:
@@ -378,7 +371,9 @@ def basin_phase(
                 climbs.append(hunt)
                 continue  # refit with the hunt's evaluations, and hunt again
             hunting = False
-        found = secondary_basins(x_unit, y, surrogate, settings.radius, settings.depth, explored)
+        found = secondary_basins(
+            x_unit, y, surrogate, settings.radius, settings.depth, explored, ascent=ascent
+        )
         if not found:
             break
         share = max(1, min(len(found), settings.max_basins - climbed))
@@ -414,22 +409,27 @@ def _hunt(
     settings: BasinSettings,
     evaluate: Callable[[np.ndarray], np.ndarray],
     seed: Callable[[], int],
-) -> tuple[np.ndarray, np.ndarray, ClimbReport | None]:
+) -> tuple[
+    np.ndarray, np.ndarray, ClimbReport | None, tuple[np.ndarray, np.ndarray, np.ndarray] | None
+]:
     """The hunt batch of :mod:`.mode_hunt` where the surrogate has two confirmed peaks or more.
 
     Returns:
-        (x_unit, y) with the hunt's evaluations appended, and its report (None, and the
-        data unchanged, where the surrogate has one peak or no upper bound reaches).
+        (x_unit, y) with the hunt's evaluations appended; its report (None, and the data
+        unchanged, where the surrogate has one peak or no upper bound reaches); and, where
+        no batch was evaluated, the :func:`ascent_ends` computed on these data (None if
+        none was), for the basin detection on the same surrogate.
     """
     y = np.asarray(y, dtype=np.float64)
     if budget < 1 or np.isfinite(y).sum() < 2:
-        return x_unit, y, None
-    keep, ends, peaked = ascent_ends(x_unit, y, surrogate, settings.radius, settings.depth)
+        return x_unit, y, None, None
+    ascent = ascent_ends(x_unit, y, surrogate, settings.radius, settings.depth)
+    keep, ends, peaked = ascent
     with torch.no_grad():
         tops = surrogate.log_likelihood_mean(torch.as_tensor(ends)).numpy()
     peaks = surrogate_peaks(ends, peaked, settings.radius, tops <= y[keep] + CONFIRM_GAIN)
     if len(peaks) < 2:
-        return x_unit, y, None
+        return x_unit, y, None, ascent
     best = int(np.nanargmax(y))
     q = x_unit.shape[1]
     new_x = hunt_batch(
@@ -443,7 +443,7 @@ def _hunt(
         ends,  # where the evaluated points climb to: modes known already
     )
     if not len(new_x):
-        return x_unit, y, None
+        return x_unit, y, None, ascent
     new_y = np.asarray(evaluate(new_x), dtype=np.float64).reshape(-1)
     top = int(np.nanargmax(new_y)) if np.isfinite(new_y).any() else 0
     report = ClimbReport(
@@ -454,4 +454,4 @@ def _hunt(
         n_evaluations=len(new_y),
         stop_reason="hunt",
     )
-    return np.vstack([x_unit, new_x]), np.concatenate([y, new_y]), report
+    return np.vstack([x_unit, new_x]), np.concatenate([y, new_y]), report, None

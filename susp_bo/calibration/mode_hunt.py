@@ -48,6 +48,7 @@ import numpy as np
 import torch
 from scipy.stats import qmc
 
+from susp_bo.calibration.cube_ascent import chebyshev, projected_ascent
 from susp_bo.calibration.surrogate import Surrogate
 
 CONFIRM_GAIN = 2.0
@@ -90,7 +91,7 @@ def surrogate_peaks(
     for i, end in enumerate(ends):
         if i > 0 and not peaked[i]:
             continue
-        if any(np.max(np.abs(end - p)) < radius for p in seen):
+        if seen and np.min(chebyshev(end[None], np.array(seen))) < radius:
             continue
         seen.append(end)
         if confirmed[i]:
@@ -108,16 +109,12 @@ def upper_bound_maxima(surrogate: Surrogate, q: int, beta: float, seed: int) -> 
     with torch.no_grad():
         mean, sd = surrogate.log_likelihood_uncertainty(candidates)
     starts = candidates[torch.topk(mean + beta * sd, HUNT_STARTS).indices]
-    x = starts.clone().requires_grad_(True)
-    optimiser = torch.optim.Adam([x], lr=0.01)
-    for _ in range(HUNT_STEPS):
-        optimiser.zero_grad()
+
+    def upper_bound(x: torch.Tensor) -> torch.Tensor:
         mean, sd = surrogate.log_likelihood_uncertainty(x)
-        (-(mean + beta * sd).sum()).backward()
-        optimiser.step()
-        with torch.no_grad():
-            x.clamp_(0.0, 1.0)
-    return x.detach().numpy()
+        return mean + beta * sd
+
+    return projected_ascent(upper_bound, starts.numpy(), HUNT_STEPS)
 
 
 def hunt_batch(
@@ -160,9 +157,9 @@ def hunt_batch(
     for i in np.argsort(-bound, kind="stable"):
         if not reaches[i]:
             continue
-        if len(known) and np.min(np.max(np.abs(maxima[i] - known), axis=1)) < radius:
+        if len(known) and np.min(chebyshev(maxima[i][None], known)) < radius:
             continue  # a mode known already
-        if any(np.max(np.abs(maxima[i] - maxima[j])) < radius for j in chosen):
+        if chosen and np.min(chebyshev(maxima[i][None], maxima[chosen])) < radius:
             continue
         chosen.append(int(i))
         if len(chosen) == size:
