@@ -220,6 +220,12 @@ BAD_EDITS = [
         r"search\.kernel_switch: 'no' is not allowed; expected true or false",
     ),
     (
+        "hunt = 0.0",
+        "hunt = -3",
+        r"search\.hunt: -3 is not allowed; expected a finite number >= 0 \(0: no hunt; 3 mea",
+    ),
+    ("hunt = 0.0", 'hunt = "yes"', r"search\.hunt: 'yes' is not allowed; expected a finite"),
+    (
         'sampler = "auto"',
         'sampler = "nuts"',
         r"mcmc\.sampler: 'nuts' is not allowed; expected one of \"random_walk\", \"hmc\", \"auto\"",
@@ -238,6 +244,20 @@ def test_bad_configs_name_the_file_field_value_and_allowed(
     with pytest.raises(ValueError, match=message) as raised:
         load_study_config(path)
     assert str(raised.value).startswith(f"{path}: ")
+
+
+def test_a_hunt_without_the_basin_phase_is_refused(study_folder: Path) -> None:
+    """The hunt is a step of the basin phase: asked for without it, it would do nothing."""
+    path = _example_with_rig_path(study_folder)
+    text = path.read_text(encoding="utf-8")
+    text = text.replace("basins = true", "basins = false", 1).replace("hunt = 0.0", "hunt = 3", 1)
+    path.write_text(text, encoding="utf-8")
+    message = r"search: hunt = 3 and basins = false are not allowed together; the hunt is part of"
+    with pytest.raises(ValueError, match=message) as raised:
+        load_study_config(path)
+    assert str(raised.value).startswith(f"{path}: ")
+    path.write_text(text.replace("hunt = 3", "hunt = 0.0", 1), encoding="utf-8")
+    assert load_study_config(path).search.hunt == 0.0
 
 
 def test_check_parameters_names_unknown_and_allowed(study_folder: Path) -> None:

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from susp_bo import __version__
+from susp_bo.calibration.basin_search import BasinSettings
 from susp_bo.calibration.evaluation import LikelihoodEvaluator
 from susp_bo.calibration.likelihood import (
     expected_log_likelihood_at_truth as expected_at_truth_under,
@@ -136,6 +137,7 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         allow_small_budget=config.budget.allow_small,
         local_search=config.search.local,
         basin_search=config.search.basins,
+        basin=BasinSettings(hunt_beta=config.search.hunt),
         refine_optimism=config.search.refine_optimism,
         kernel_switch=config.search.kernel_switch,
         surrogate=SurrogateSettings(kernel=config.search.kernel),  # type: ignore[arg-type]

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
+from susp_bo.calibration.basin_search import BasinSettings
 from susp_bo.calibration.settings import CalibrationSettings
 from susp_bo.calibration.study import calibration_settings
 from susp_bo.study_config import BudgetConfig, SearchConfig, SeedsConfig, StudyConfig
@@ -25,9 +27,21 @@ def test_study_config_sections_reach_the_loop_settings() -> None:
     assert (settings.local_search, settings.basin_search) == (True, False)
     assert settings.refine_optimism == 2.0 and isinstance(settings.refine_optimism, float)
     assert settings.surrogate.kernel == "auto"
+    assert settings.basin == BasinSettings()  # no hunt unless asked for
+
+
+def test_the_hunt_reaches_the_basin_phase_and_nothing_else_changes() -> None:
+    base = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"))
+    hunting = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"),
+                          search=SearchConfig(hunt=3))  # fmt: skip
+    settings = calibration_settings(hunting)
+    assert settings.basin.hunt_beta == 3.0 and isinstance(settings.basin.hunt_beta, float)
+    assert settings.basin == dataclasses.replace(BasinSettings(), hunt_beta=3.0)
+    assert dataclasses.replace(settings, basin=BasinSettings()) == calibration_settings(base)
 
 
 def test_default_search_section_keeps_the_loop_default_refinement() -> None:
     config = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"))
     assert calibration_settings(config).refine_optimism == CalibrationSettings().refine_optimism
     assert calibration_settings(config).surrogate == CalibrationSettings().surrogate
+    assert calibration_settings(config).basin == CalibrationSettings().basin
