@@ -315,6 +315,44 @@ def climb(
     return x_unit, y, report
 
 
+@dataclass(frozen=True)
+class BasinPhase:
+    """What the basin phase did.
+
+    Attributes:
+        climbs: one report per climb or hunt batch, in order (empty: nothing to climb).
+        confirmed_peaks: the most peaks of the surrogate's mean, each confirmed by an
+            evaluation within :data:`.mode_hunt.CONFIRM_GAIN` nats of its top, counted at
+            the start of any round (:func:`confirmed_peaks`): 2 or more means the search
+            has met several modes of log L.
+    """
+
+    climbs: list[ClimbReport]
+    confirmed_peaks: int
+
+
+def confirmed_peaks(
+    x_unit: np.ndarray, y: np.ndarray, surrogate: Surrogate, settings: BasinSettings
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The surrogate's peaks that an evaluation confirms, and the ascent that found them.
+
+    Args:
+        x_unit: (n x q) evaluated points, unit cube; y: (n,) their log L.
+        surrogate: fitted on them.
+        settings: the basin settings (``radius``, ``depth``).
+
+    Returns:
+        ((k x q) the confirmed peaks, unit cube; the :func:`ascent_ends` of these data,
+        for :func:`secondary_basins` on the same surrogate).
+    """
+    ascent = ascent_ends(x_unit, y, surrogate, settings.radius, settings.depth)
+    keep, ends, peaked = ascent
+    with torch.no_grad():
+        tops = surrogate.log_likelihood_mean(torch.as_tensor(ends)).numpy()
+    peaks = surrogate_peaks(ends, peaked, settings.radius, tops <= y[keep] + CONFIRM_GAIN)
+    return peaks, ascent
+
+
 def basin_phase(
     x_unit: np.ndarray,
     y: np.ndarray,
@@ -326,7 +364,7 @@ def basin_phase(
     seed: Callable[[], int],
     restarts: int,
     raw_samples: int,
-) -> list[ClimbReport]:
+) -> BasinPhase:
     """The whole phase: find secondary basins, climb the most promising, repeat.
 
     Each round refits the surrogate on all data, lists the basins not explored yet
@@ -349,9 +387,11 @@ def basin_phase(
             records each batch with the caller).
 
     Returns:
-        One report per climb (empty when the data head no secondary basin).
+        One report per climb (empty when the data head no secondary basin), and the most
+        confirmed peaks counted at the start of a round.
     """
     explored = np.empty((0, x_unit.shape[1]))
+    most_peaks = 0
     climbs: list[ClimbReport] = []
     used = 0
     hunting = settings.hunt_beta > 0.0
@@ -360,11 +400,16 @@ def basin_phase(
     while used < budget and climbed < settings.max_basins:
         surrogate = fit(x_unit, y)
         ascent = None
+        peaks = np.empty((0, x_unit.shape[1]))
+        if np.isfinite(y).sum() >= 2:  # the same ascent serves the hunt and the detection
+            peaks, ascent = confirmed_peaks(x_unit, np.asarray(y, dtype=np.float64), surrogate,
+                                            settings)  # fmt: skip
+            most_peaks = max(most_peaks, len(peaks))
         if hunting:
             size = min(hunt_left, budget - used)
-            x_unit, y, hunt, ascent = _hunt(
-                x_unit, y, surrogate, size, batch_size, settings, evaluate, seed
-            )
+            ends = ascent[1] if ascent is not None else peaks
+            x_unit, y, hunt = _hunt(x_unit, y, surrogate, size, batch_size, settings, evaluate,
+                                    seed, peaks, ends)  # fmt: skip
             if hunt is not None:
                 used += hunt.n_evaluations
                 hunt_left -= hunt.n_evaluations
@@ -397,7 +442,7 @@ def basin_phase(
         climbs.append(report)
         climbed += 1
         hunting = settings.hunt_beta > 0.0  # a climb may have confirmed a second mode
-    return climbs
+    return BasinPhase(climbs, most_peaks)
 
 
 def _hunt(
@@ -409,27 +454,23 @@ def _hunt(
     settings: BasinSettings,
     evaluate: Callable[[np.ndarray], np.ndarray],
     seed: Callable[[], int],
-) -> tuple[
-    np.ndarray, np.ndarray, ClimbReport | None, tuple[np.ndarray, np.ndarray, np.ndarray] | None
-]:
+    peaks: np.ndarray,
+    ends: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, ClimbReport | None]:
     """The hunt batch of :mod:`.mode_hunt` where the surrogate has two confirmed peaks or more.
 
+    Args:
+        peaks: (k x q) the surrogate's confirmed peaks (:func:`confirmed_peaks`).
+        ends: where the evaluated points climb to on ``surrogate`` (:func:`ascent_ends`):
+            the modes known already.
+
     Returns:
-        (x_unit, y) with the hunt's evaluations appended; its report (None, and the data
-        unchanged, where the surrogate has one peak or no upper bound reaches); and, where
-        no batch was evaluated, the :func:`ascent_ends` computed on these data (None if
-        none was), for the basin detection on the same surrogate.
+        (x_unit, y) with the hunt's evaluations appended, and its report (None, and the
+        data unchanged, where the surrogate has one peak or no upper bound reaches).
     """
     y = np.asarray(y, dtype=np.float64)
-    if budget < 1 or np.isfinite(y).sum() < 2:
-        return x_unit, y, None, None
-    ascent = ascent_ends(x_unit, y, surrogate, settings.radius, settings.depth)
-    keep, ends, peaked = ascent
-    with torch.no_grad():
-        tops = surrogate.log_likelihood_mean(torch.as_tensor(ends)).numpy()
-    peaks = surrogate_peaks(ends, peaked, settings.radius, tops <= y[keep] + CONFIRM_GAIN)
-    if len(peaks) < 2:
-        return x_unit, y, None, ascent
+    if budget < 1 or len(peaks) < 2:
+        return x_unit, y, None
     best = int(np.nanargmax(y))
     q = x_unit.shape[1]
     new_x = hunt_batch(
@@ -440,10 +481,10 @@ def _hunt(
         settings.radius,
         settings.hunt_beta,
         seed(),
-        ends,  # where the evaluated points climb to: modes known already
+        ends,
     )
     if not len(new_x):
-        return x_unit, y, None, ascent
+        return x_unit, y, None
     new_y = np.asarray(evaluate(new_x), dtype=np.float64).reshape(-1)
     top = int(np.nanargmax(new_y)) if np.isfinite(new_y).any() else 0
     report = ClimbReport(
@@ -454,4 +495,4 @@ def _hunt(
         n_evaluations=len(new_y),
         stop_reason="hunt",
     )
-    return np.vstack([x_unit, new_x]), np.concatenate([y, new_y]), report, None
+    return np.vstack([x_unit, new_x]), np.concatenate([y, new_y]), report

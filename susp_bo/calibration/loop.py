@@ -12,7 +12,9 @@
       ``basin.budget_fraction`` of the evaluations left; nothing when there is none;
       with ``basin.hunt_beta`` > 0 (opt-in), where the surrogate has two confirmed peaks
       it also hunts, at the maxima of its upper bound, for modes no evaluation came near
-      (:mod:`.mode_hunt`);
+      (:mod:`.mode_hunt`); where the phase counts two or more confirmed peaks (several
+      modes met) on a global search with fixed noise, the rest of the refinement runs
+      with ``refine_optimism`` >= ``modes_refine_optimism`` (2; session 42);
    a'. with ``settings.local_search`` and an evaluator that exposes its spectra
       (:class:`.local_search.SpectraEvaluator`, as the study's does): when EGO ends,
       trust-region Gauss–Newton on the spectra from the best point (up to
@@ -60,6 +62,7 @@ a cache), a rerun reproduces the result exactly.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Callable, Sequence
@@ -298,6 +301,7 @@ def calibrate(
     basins_done = False
     superseded = False
     climbs: list[ClimbReport] = []
+    modes_optimism_at: int | None = None
     wants_local = settings.local_search and isinstance(evaluate, SpectraEvaluator)
     if settings.local_search and not wants_local:
         logger.warning(
@@ -336,10 +340,28 @@ def calibrate(
         if settings.basin_search and not basins_done and phase == "refine":
             basins_done = True
             n_before = x.shape[0]
-            x, y, iteration, new_climbs = run_basin_phase(
+            x, y, iteration, new_climbs, peaks = run_basin_phase(
                 evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
             )
             climbs.extend(new_climbs)
+            kappa = settings.modes_refine_optimism
+            if (
+                peaks >= 2
+                and modes_optimism_at is None
+                and kappa > settings.refine_optimism
+                and not wants_local
+                and not settings.trust_region
+                and settings.surrogate.noise != "learned"  # a noisy log L's bumps confirm easily
+            ):
+                modes_optimism_at = int(x.shape[0])
+                settings = dataclasses.replace(settings, refine_optimism=kappa)
+                logger.info(
+                    "basin search: %d confirmed peaks of the surrogate (several modes);"
+                    " refinement from %d evaluations with refine_optimism %g",
+                    peaks,
+                    modes_optimism_at,
+                    kappa,
+                )
             if x.shape[0] > n_before:
                 continue
         if wants_local and local is None and phase == "refine":
@@ -489,6 +511,7 @@ def calibrate(
         basins=tuple(climbs),
         local_search_superseded=superseded,
         kernel_switch=switcher.record(),
+        modes_optimism_at=modes_optimism_at,
     )
     measured = getattr(evaluate, "measured", None)
     spectra = getattr(evaluate, "spectra", None)  # all the rule needs of a SpectraEvaluator

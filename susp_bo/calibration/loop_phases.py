@@ -48,8 +48,13 @@ def run_basin_phase(
     history: list[IterationReport],
     on_iteration: Callable[[IterationReport], None] | None,
     bar: Any,
-) -> tuple[np.ndarray, np.ndarray, int, list[ClimbReport]]:
-    """The basin phase (:mod:`.basin_search`) on C_w; its runs join the data."""
+) -> tuple[np.ndarray, np.ndarray, int, list[ClimbReport], int]:
+    """The basin phase (:mod:`.basin_search`) on C_w; its runs join the data.
+
+    Returns:
+        (x, y, iteration) with the phase's evaluations, its climbs, and the most confirmed
+        peaks of the surrogate it counted (:attr:`.basin_search.BasinPhase.confirmed_peaks`).
+    """
     data = PhaseRecorder(x, y, iteration, history, on_iteration, bar)
 
     def fit(x_unit: np.ndarray, values: np.ndarray) -> Surrogate:
@@ -67,7 +72,7 @@ def run_basin_phase(
         return values
 
     with torch_state(settings.num_threads):
-        climbs = basin_phase(
+        outcome = basin_phase(
             to_unit(x, bounds),
             y,
             int(settings.basin.budget_fraction * (main_budget - x.shape[0])),
@@ -79,7 +84,7 @@ def run_basin_phase(
             settings.acquisition_restarts,
             settings.acquisition_raw_samples,
         )
-    for report in climbs:
+    for report in outcome.climbs:
         if report.stop_reason == "hunt":
             logger.info(
                 "basin search: the surrogate has two or more confirmed peaks; %d evaluations "
@@ -95,7 +100,7 @@ def run_basin_phase(
             report.n_evaluations,
             report.stop_reason,
         )
-    return data.x, data.y, data.iteration, climbs
+    return data.x, data.y, data.iteration, outcome.climbs, outcome.confirmed_peaks
 
 
 def run_local_phase(

@@ -120,6 +120,10 @@ class CalibrationResult:
             Matérn during the search and when the run switched to ``kernel="auto"``
             (:mod:`.kernel_switch`); None when none was made (``result.json`` then has no
             ``kernel_switch`` key).
+        modes_optimism_at: the evaluations when the basin phase's count of two or more
+            confirmed peaks raised the refinement's ``refine_optimism`` to
+            ``CalibrationSettings.modes_refine_optimism``; None when it did not
+            (``result.json`` then has no ``modes_refine_optimism_from_evaluation`` key).
     """
 
     names: tuple[str, ...]
@@ -140,6 +144,7 @@ class CalibrationResult:
     basins: tuple[ClimbReport, ...] = ()
     local_search_superseded: bool = False
     kernel_switch: KernelSwitch | None = None
+    modes_optimism_at: int | None = None
 
     @property
     def samples(self) -> np.ndarray:
@@ -191,25 +196,35 @@ class CalibrationResult:
         output error, number of simulations, version, …).
         """
         summary = self.summary.to_dict()
-        return {
-            "parameters": list(self.names),
-            "bounds": [[float(lo), float(hi)] for lo, hi in self.bounds.T],
-            "joint_map": summary["joint_map"],
-            "marginal_map": summary["marginal_map"],
-            "interval95": summary["interval95"],
-            "equal_tailed95": summary["equal_tailed95"],
-            "posterior_mean": summary["mean"],
-            "posterior_sd": summary["sd"],
-            "n_evaluations": int(self.n_evaluations),
-            "n_failed_evaluations": int(np.sum(~np.isfinite(self.y))),
-            "stop_reason": self.stop_reason,
-            "best_log_likelihood": float(np.nanmax(self.y)),
-            "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **self.mcmc},
-            "surrogate_check": None if self.check is None else self.check.to_dict(self.box),
-            "search_box": None if self.search_box is None else self.search_box.tolist(),
-            "local_search": self.local_search_dict(),
-            "basin_climbs": self.basin_climbs(),
-            "reliability": None if self.reliability is None else self.reliability.to_dict(),
-        } | (  # the key only where the kernels were compared: other results are unchanged
-            {} if self.kernel_switch is None else {"kernel_switch": self.kernel_switch.to_dict()}
+        return (
+            {
+                "parameters": list(self.names),
+                "bounds": [[float(lo), float(hi)] for lo, hi in self.bounds.T],
+                "joint_map": summary["joint_map"],
+                "marginal_map": summary["marginal_map"],
+                "interval95": summary["interval95"],
+                "equal_tailed95": summary["equal_tailed95"],
+                "posterior_mean": summary["mean"],
+                "posterior_sd": summary["sd"],
+                "n_evaluations": int(self.n_evaluations),
+                "n_failed_evaluations": int(np.sum(~np.isfinite(self.y))),
+                "stop_reason": self.stop_reason,
+                "best_log_likelihood": float(np.nanmax(self.y)),
+                "mcmc": {"r_hat": summary["r_hat"], "ess": summary["ess"], **self.mcmc},
+                "surrogate_check": None if self.check is None else self.check.to_dict(self.box),
+                "search_box": None if self.search_box is None else self.search_box.tolist(),
+                "local_search": self.local_search_dict(),
+                "basin_climbs": self.basin_climbs(),
+                "reliability": None if self.reliability is None else self.reliability.to_dict(),
+            }
+            | (  # the key only where the kernels were compared: other results are unchanged
+                {}
+                if self.kernel_switch is None
+                else {"kernel_switch": self.kernel_switch.to_dict()}
+            )
+            | (  # the key only where several modes raised the refinement's optimism
+                {}
+                if self.modes_optimism_at is None
+                else {"modes_refine_optimism_from_evaluation": self.modes_optimism_at}
+            )
         )

@@ -149,3 +149,40 @@ def test_the_box_and_incumbent_of_the_acquisition_are_honoured() -> None:
     assert torch.all(u >= box[0] - 1e-12) and torch.all(u <= box[1] + 1e-12)
     with pytest.raises(ValueError, match="box"):
         propose_ei_batch(surrogate, 1, 0, 2, 16, box=box[:, :1])
+
+
+def _small(**kw: object) -> CalibrationSettings:
+    return CalibrationSettings(
+        seed=0, max_evaluations=40, batch_size=4, mcmc_chains=8, mcmc_warmup=100,
+        mcmc_samples=100, candidate_count=64, check_points=0, **kw,  # type: ignore[arg-type]
+    )  # fmt: skip
+
+
+def test_several_confirmed_modes_make_the_refinement_optimistic_and_say_so() -> None:
+    """Two bumps both found: the basin phase counts two confirmed peaks, and the rest of
+    the refinement runs with refine_optimism = modes_refine_optimism (recorded)."""
+    bounds, names = np.array([[0.0, 0.0], [1.0, 1.0]]), ("a", "b")
+    on = calibrate(log_l, bounds, names, _small(), progress=False)
+    off = calibrate(log_l, bounds, names, _small(modes_refine_optimism=0.0), progress=False)
+    assert on.modes_optimism_at is not None
+    assert on.to_dict()["modes_refine_optimism_from_evaluation"] == on.modes_optimism_at
+    assert off.modes_optimism_at is None
+    assert "modes_refine_optimism_from_evaluation" not in off.to_dict()
+    # the same run up to the switch, another one after it
+    n = on.modes_optimism_at
+    np.testing.assert_array_equal(on.X[:n], off.X[:n])
+    assert not np.array_equal(on.X, off.X)
+
+
+def test_one_mode_leaves_the_refinement_as_it_was() -> None:
+    bounds, names = np.array([[0.0, 0.0], [1.0, 1.0]]), ("a", "b")
+    on = calibrate(log_l_one, bounds, names, _small(), progress=False)
+    off = calibrate(log_l_one, bounds, names, _small(modes_refine_optimism=0.0), progress=False)
+    assert on.modes_optimism_at is None
+    np.testing.assert_array_equal(on.X, off.X)
+    np.testing.assert_array_equal(on.draws, off.draws)
+
+
+def test_a_bad_modes_refine_optimism_is_refused() -> None:
+    with pytest.raises(ValueError, match="modes_refine_optimism: -1"):
+        CalibrationSettings(modes_refine_optimism=-1.0)

@@ -110,7 +110,7 @@ def _phase(log_l, hunt_beta: float) -> tuple[list, list[np.ndarray]]:
         return log_l(u)
 
     settings = BasinSettings(hunt_beta=hunt_beta)
-    climbs = basin_phase(x, y, 24, 4, settings, _fit, evaluate, lambda: 5, 4, 128)
+    climbs = basin_phase(x, y, 24, 4, settings, _fit, evaluate, lambda: 5, 4, 128).climbs
     return climbs, calls
 
 
@@ -154,9 +154,11 @@ def test_a_mode_seen_only_at_its_fringe_is_climbed_not_hunted() -> None:
         calls.append(u.copy())
         return two_modes(u)
 
-    climbs = basin_phase(
+    outcome = basin_phase(
         x, y, 24, 4, BasinSettings(hunt_beta=12.0), _fit, evaluate, lambda: 5, 4, 128
     )
+    climbs = outcome.climbs
+    assert outcome.confirmed_peaks >= 1  # the first mode; the climb confirms the second
     assert climbs and all(c.stop_reason != "hunt" for c in climbs)
     assert climbs[0].end_log_likelihood > -0.5  # the climb reached the second mode's top
 
