@@ -352,27 +352,17 @@ class SearchConfig:
             value = getattr(self, name)
             if not isinstance(value, bool):
                 raise ValueError(f"search.{name}: {value!r} is not allowed; expected true or false")
-        kappa = self.refine_optimism
-        if (
-            isinstance(kappa, bool)
-            or not isinstance(kappa, (int, float))
-            or not (math.isfinite(kappa) and kappa >= 0.0)
-        ):
-            raise ValueError(
-                f"search.refine_optimism: {kappa!r} is not allowed; expected a finite number >= 0"
-            )
-        object.__setattr__(self, "refine_optimism", float(kappa))
-        beta = self.hunt
-        if (
-            isinstance(beta, bool)
-            or not isinstance(beta, (int, float))
-            or not (math.isfinite(beta) and beta >= 0.0)
-        ):
-            raise ValueError(
-                f"search.hunt: {beta!r} is not allowed; expected a finite number >= 0 "
-                "(0: no hunt; 3 measured)"
-            )
-        object.__setattr__(self, "hunt", float(beta))
+        for name, hint in (("refine_optimism", ""), ("hunt", " (0: no hunt; 3 measured)")):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not (math.isfinite(value) and value >= 0.0)
+            ):
+                raise ValueError(
+                    f"search.{name}: {value!r} is not allowed; expected a finite number >= 0" + hint
+                )
+            object.__setattr__(self, name, float(value))
         if self.hunt > 0.0 and not self.basins:
             raise ValueError(
                 f"search: hunt = {self.hunt:g} and basins = false are not allowed together; "
