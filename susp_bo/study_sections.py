@@ -334,9 +334,9 @@ class SearchConfig:
             ``basins = true``). 0 (default): no hunt. β > 0 (3 measured): where the
             surrogate has two or more confirmed peaks, evaluate at the local maxima of
             mean + β sd that could hold posterior mass. Opt-in: on a trimodal 5-D test
-            target it kept the third mode on the two seeds that lost it (MMTV .188 / .189 ->
-            .018 / .025) but made a third worse (.055 -> .115), and on a curved 5-D target
-            one seed went from .024 to .067, still ``trusted``.
+            target it keeps the third mode on the two seeds of 0–8 that lose it (MMTV .186 /
+            .187 -> .018 / .019; every seed <= .023, session 42), but on a curved 5-D target
+            one seed goes from .024 to .067, still ``trusted``.
     """
 
     section: ClassVar[str] = "search"
