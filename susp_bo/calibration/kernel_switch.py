@@ -94,10 +94,8 @@ class KernelSwitcher:
         self.enabled = (
             settings.kernel_switch
             and settings.surrogate.kernel == "matern"
-            and settings.surrogate.noise != "learned"
             and q >= 3
-            and not settings.trust_region
-            and not local_phase
+            and settings.global_fixed_noise_search(local_phase)
         )
         self.every = max(1, math.ceil(CHECK_EVERY * budget))
         self.checks: list[tuple[int, float]] = []

@@ -349,9 +349,7 @@ def calibrate(
                 peaks >= 2
                 and modes_optimism_at is None
                 and kappa > settings.refine_optimism
-                and not wants_local
-                and not settings.trust_region
-                and settings.surrogate.noise != "learned"  # a noisy log L's bumps confirm easily
+                and settings.global_fixed_noise_search(wants_local)
             ):
                 modes_optimism_at = int(x.shape[0])
                 settings = dataclasses.replace(settings, refine_optimism=kappa)

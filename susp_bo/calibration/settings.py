@@ -257,3 +257,10 @@ class CalibrationSettings:
             raise ValueError(f"estimator: {self.estimator!r}, expected plug_in/mean_log/expected")
         if self.mcmc_backend not in ("vectorized", "pyro"):
             raise ValueError(f"mcmc_backend: {self.mcmc_backend!r}, expected vectorized/pyro")
+
+    def global_fixed_noise_search(self, local_phase: bool) -> bool:
+        """Whether the search runs over C_w with a fixed observation noise: no trust region,
+        no local phase (``local_phase``: the run will make or made one) and no learned
+        noise (a noisy log L's scores and bumps mislead). Where the run's own evidence may
+        change its settings (:mod:`.kernel_switch`, ``modes_refine_optimism``)."""
+        return not (local_phase or self.trust_region or self.surrogate.noise == "learned")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from susp_bo.calibration.settings import CalibrationSettings, min_mcmc_samples
+from susp_bo.calibration.surrogate import SurrogateSettings
 
 
 @pytest.mark.parametrize(
@@ -89,3 +90,12 @@ def test_mcmc_samples_leave_four_draws_per_chain_for_the_split_r_hat(
     assert CalibrationSettings(mcmc_samples=least, mcmc_sampler=sampler).mcmc_samples == least
     with pytest.raises(ValueError, match=rf"mcmc_samples: {least - 1} .* >= {least} .*R-hat"):
         CalibrationSettings(mcmc_samples=least - 1, mcmc_sampler=sampler)
+
+
+def test_a_global_fixed_noise_search_is_unboxed_unlocal_and_noiseless() -> None:
+    """The condition under which the kernel switch and the modes' optimism may act."""
+    assert CalibrationSettings().global_fixed_noise_search(local_phase=False)
+    assert not CalibrationSettings().global_fixed_noise_search(local_phase=True)
+    assert not CalibrationSettings(trust_region=True).global_fixed_noise_search(False)
+    learned = CalibrationSettings(surrogate=SurrogateSettings(noise="learned"))
+    assert not learned.global_fixed_noise_search(False)
