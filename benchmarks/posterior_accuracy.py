@@ -27,9 +27,13 @@ known) and each budget, this script runs in the same process:
   the noisy target's noise sd): the information PyVBMC gets on that target;
 - ``susp_bo-optimistic``: the default with ``refine_optimism=2.0`` (refinement candidates
   from the optimistic posterior exp(E[L̃]), weight exp(E[log L̃] + 2 sd − max));
-- ``susp_bo-hunt``: the default with ``BasinSettings(hunt_beta=3.0)``: where the surrogate
-  has two confirmed peaks, the basin phase hunts for modes no evaluation came near
-  (:mod:`susp_bo.calibration.mode_hunt`, session 41; off by default);
+- ``susp_bo-hunt``: ``BasinSettings(hunt_beta=3.0)``: where the surrogate has two
+  confirmed peaks, the basin phase hunts for modes no evaluation came near
+  (:mod:`susp_bo.calibration.mode_hunt`, session 41; opt-in until session 42, the
+  default since session 43, which made it end at a batch that finds nothing and need two
+  confirmed peaks when the phase starts — so since then the same as ``susp_bo``);
+- ``susp_bo-nohunt``: the default without the hunt (``hunt_beta=0``): the default of
+  sessions 41–42;
 - ``susp_bo-kauto``: the default with ``SurrogateSettings(kernel="auto")`` (the Matérn
   and the pairwise additive kernel fitted at every refit, the better leave-one-out score
   kept: :mod:`susp_bo.calibration.additive_kernel`);
@@ -184,6 +188,7 @@ def _runners(batch_size: int) -> dict[str, Callable[[], Runner]]:
         "susp_bo-known-noise": with_surrogate(noise="learned", noise_prior_width=0.02),
         "susp_bo-optimistic": lambda: run_susp_bo(replace(base, refine_optimism=2.0)),
         "susp_bo-hunt": lambda: run_susp_bo(replace(base, basin=BasinSettings(hunt_beta=3.0))),
+        "susp_bo-nohunt": lambda: run_susp_bo(replace(base, basin=BasinSettings(hunt_beta=0.0))),
         "susp_bo-kauto": with_surrogate(kernel="auto"),
         "susp_bo-kauto-optimistic": lambda: run_susp_bo(
             replace(base, refine_optimism=2.0, surrogate=SurrogateSettings(kernel="auto"))

@@ -51,7 +51,7 @@ Example (also in the README; the test suite loads this one)::
     refine_optimism = 0.0   # > 0 (e.g. 2): also refine where the surrogate may miss mass
     kernel = "matern"       # GP covariance; "auto" also tries the pairwise additive one
     kernel_switch = true    # "matern", no local phase: go "auto" if the additive one fits better
-    hunt = 0.0              # > 0 (e.g. 3): also look for modes no evaluation came near
+    hunt = 0.0              # omit: 3 where local = false (look for modes no evaluation came near)
 """
 
 from __future__ import annotations

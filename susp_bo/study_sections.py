@@ -330,13 +330,13 @@ class SearchConfig:
             additive kernel predicts the evaluations better
             (:mod:`susp_bo.calibration.kernel_switch`); false = keep the kernel given.
         hunt: β >= 0 of the basin phase's hunt for modes no evaluation came near
-            (:attr:`susp_bo.calibration.basin_search.BasinSettings.hunt_beta`, needs
-            ``basins = true``). 0 (default): no hunt. β > 0 (3 measured): where the
-            surrogate has two or more confirmed peaks, evaluate at the local maxima of
-            mean + β sd that could hold posterior mass. Opt-in: on a trimodal 5-D test
-            target it keeps the third mode on the two seeds of 0–8 that lose it (MMTV .186 /
-            .187 -> .018 / .019; every seed <= .023, session 42), but on a curved 5-D target
-            one seed goes from .024 to .067, still ``trusted``.
+            (:attr:`susp_bo.calibration.basin_search.BasinSettings.hunt_beta`). Omitted:
+            the default, 3 (session 43), in a search without the local phase. β > 0 (needs
+            ``basins = true`` and ``local = false``, where the hunt runs): where the
+            surrogate has two or more confirmed peaks when EGO ends, evaluate at the local
+            maxima of mean + β sd that could hold posterior mass. On a trimodal 5-D test
+            target it keeps the third mode on the two seeds of 0–8 that lose it without
+            (MMTV .186 / .187 -> .019 / .019; session 43). 0: no hunt.
     """
 
     section: ClassVar[str] = "search"
@@ -345,7 +345,7 @@ class SearchConfig:
     refine_optimism: float = 0.0
     kernel: str = "matern"
     kernel_switch: bool = True
-    hunt: float = 0.0
+    hunt: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("local", "basins", "kernel_switch"):
@@ -354,6 +354,8 @@ class SearchConfig:
                 raise ValueError(f"search.{name}: {value!r} is not allowed; expected true or false")
         for name, hint in (("refine_optimism", ""), ("hunt", " (0: no hunt; 3 measured)")):
             value = getattr(self, name)
+            if value is None and name == "hunt":
+                continue  # the default
             if (
                 isinstance(value, bool)
                 or not isinstance(value, (int, float))
@@ -363,10 +365,16 @@ class SearchConfig:
                     f"search.{name}: {value!r} is not allowed; expected a finite number >= 0" + hint
                 )
             object.__setattr__(self, name, float(value))
-        if self.hunt > 0.0 and not self.basins:
+        if self.hunt is not None and self.hunt > 0.0 and not self.basins:
             raise ValueError(
                 f"search: hunt = {self.hunt:g} and basins = false are not allowed together; "
                 "the hunt is part of the basin phase (set basins = true, or hunt = 0)"
+            )
+        if self.hunt is not None and self.hunt > 0.0 and self.local:
+            raise ValueError(
+                f"search: hunt = {self.hunt:g} and local = true are not allowed together; "
+                "the hunt runs in a search over C_w without the local phase (set local = "
+                "false, or hunt = 0)"
             )
         if self.kernel not in _KERNELS:
             raise ValueError(

@@ -61,7 +61,7 @@ def test_docstring_example_loads_with_every_value(study_folder: Path) -> None:
         executor=ExecutorConfig(workers=8),
         mcmc=MCMCConfig(chains=512, draws=2000, warmup=500, sampler="auto"),
         output_error=OutputErrorConfig(model="unpaired", sigma="estimate", sensor_noise_m_s2=0.005),
-        search=SearchConfig(local=True),
+        search=SearchConfig(local=True, hunt=0.0),
     )
 
 
@@ -258,6 +258,22 @@ def test_a_hunt_without_the_basin_phase_is_refused(study_folder: Path) -> None:
     assert str(raised.value).startswith(f"{path}: ")
     path.write_text(text.replace("hunt = 3", "hunt = 0.0", 1), encoding="utf-8")
     assert load_study_config(path).search.hunt == 0.0
+    # omitted, it is the default (3 where there is no local phase): no refusal
+    omitted = "\n".join(line for line in text.splitlines() if not line.startswith("hunt ="))
+    path.write_text(omitted, encoding="utf-8")
+    assert load_study_config(path).search.hunt is None
+
+
+def test_a_hunt_with_the_local_phase_is_refused(study_folder: Path) -> None:
+    """The hunt runs in a search over C_w; with the local phase it would do nothing."""
+    path = _example_with_rig_path(study_folder)
+    text = path.read_text(encoding="utf-8")
+    assert "local = true" in text
+    path.write_text(text.replace("hunt = 0.0", "hunt = 3", 1), encoding="utf-8")
+    message = r"search: hunt = 3 and local = true are not allowed together; the hunt runs in"
+    with pytest.raises(ValueError, match=message) as raised:
+        load_study_config(path)
+    assert str(raised.value).startswith(f"{path}: ")
 
 
 def test_check_parameters_names_unknown_and_allowed(study_folder: Path) -> None:

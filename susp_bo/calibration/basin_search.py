@@ -24,9 +24,9 @@ or when its share of the phase's budget is spent (:func:`basin_phase`). A unimod
 whose surrogate has a single basin among those points (the usual case) costs one gradient
 ascent and changes nothing else.
 
-With ``hunt_beta`` > 0 (opt-in), where the surrogate has two or more peaks confirmed by
-evaluations, the phase also hunts for modes no evaluation came near (:mod:`.mode_hunt`,
-session 41).
+With ``hunt_beta`` > 0 (3, the default since session 43), where the surrogate has two or
+more peaks confirmed by evaluations when the phase starts, the phase also hunts for modes no
+evaluation came near (:mod:`.mode_hunt`, session 41), until a hunt batch finds nothing.
 """
 
 from __future__ import annotations
@@ -64,14 +64,17 @@ class BasinSettings:
         budget_fraction: share of the evaluations left when EGO ends that the phase may
             use, in (0, 1); shared equally between the basins found (a climb's share is
             what is left over the number of basins still to climb).
-        hunt_beta: where the surrogate's mean has two or more peaks, each confirmed by an
-            evaluation within 2 nats of its top (:func:`.mode_hunt.surrogate_peaks`),
-            one batch first goes to the local maxima of mean + ``hunt_beta`` sd
-            (:mod:`.mode_hunt`), and again after each such batch while the surrogate still
-            has two such peaks and a maximum of that bound away from the known modes
-            reaches the posterior; 0 (the default) turns that off (>= 0); 3 is the measured
-            setting (:mod:`.mode_hunt`: it keeps modes a trimodal target lost, and costs a
-            curved one accuracy, so it is not the default).
+        hunt_beta: where the surrogate's mean has two or more peaks when the phase starts,
+            each confirmed by an evaluation within 2 nats of its top
+            (:func:`.mode_hunt.surrogate_peaks`), one batch first goes to the local maxima
+            of mean + ``hunt_beta`` sd (:mod:`.mode_hunt`), and again after each such
+            batch (and after each climb) while the surrogate still has two such peaks, a
+            maximum of that bound away from the known modes reaches the posterior and no
+            batch came back with nothing within the posterior's reach of the best; 0 turns
+            that off (>= 0). Default 3, the measured setting (:mod:`.mode_hunt`: it keeps
+            the modes a trimodal target lost; session 43). ``calibrate`` runs it only in a
+            search over C_w with a fixed noise
+            (:meth:`.settings.CalibrationSettings.global_fixed_noise_search`).
         hunt_fraction: share of the phase's evaluations those batches may use, in (0, 1]
             (climbs may use them too; the hunts' own count is kept apart).
     """
@@ -84,7 +87,7 @@ class BasinSettings:
     improvement: float = 1.0
     max_basins: int = 4
     budget_fraction: float = 0.4
-    hunt_beta: float = 0.0
+    hunt_beta: float = 3.0
     hunt_fraction: float = 0.5
 
     def __post_init__(self) -> None:
@@ -375,8 +378,13 @@ def basin_phase(
     within ``settings.depth`` (:func:`.mode_hunt.surrogate_peaks`), ``settings.hunt_beta``
     > 0 and ``settings.hunt_fraction`` of ``budget`` is not spent, batches go where a mode
     may hide (:func:`.mode_hunt.hunt_batch`), one per refit; each is reported as a climb
-    with ``stop_reason`` "hunt" (start: the best point; end: the batch's best point). With
-    one confirmed peak throughout, the phase is what it was without the hunt, bit for bit.
+    with ``stop_reason`` "hunt" (start: the best point; end: the batch's best point). The
+    hunt needs two confirmed peaks in the first round (when the global search ended: peaks
+    that only climbs confirm are the ends of a ridge they followed, as on a curved
+    posterior), and ends for the phase at the first batch whose best point falls below the
+    posterior's reach of the best value (:func:`.trust_region.posterior_reach`): the
+    upper bounds it followed were empty. With one confirmed peak in the first round, the
+    phase is what it was without the hunt, bit for bit.
 
     Args:
         x_unit: (n x q) evaluated points, unit cube of C_w; y: (n,) their log L.
@@ -395,6 +403,7 @@ def basin_phase(
     climbs: list[ClimbReport] = []
     used = 0
     hunting = settings.hunt_beta > 0.0
+    hunt_over = False  # a fruitless hunt batch ends the hunting for the phase
     hunt_left = int(settings.hunt_fraction * budget)  # the hunts' share; climbs do not use it up
     climbed = 0
     while used < budget and climbed < settings.max_basins:
@@ -405,6 +414,11 @@ def basin_phase(
             peaks, ascent = confirmed_peaks(x_unit, np.asarray(y, dtype=np.float64), surrogate,
                                             settings)  # fmt: skip
             most_peaks = max(most_peaks, len(peaks))
+        if not climbs and len(peaks) < 2:
+            # one mode when the global search ended: peaks that climbs confirm later are the
+            # ends of a ridge they followed (a curved posterior), not modes it missed
+            hunt_over = True
+            hunting = False
         if hunting:
             size = min(hunt_left, budget - used)
             ends = ascent[1] if ascent is not None else peaks
@@ -414,7 +428,14 @@ def basin_phase(
                 used += hunt.n_evaluations
                 hunt_left -= hunt.n_evaluations
                 climbs.append(hunt)
-                continue  # refit with the hunt's evaluations, and hunt again
+                # a batch with no point within the posterior's reach of the best found no
+                # mode: the upper bounds it followed were empty, the rest would be lower
+                fruitless = not hunt.end_log_likelihood >= (
+                    hunt.start_log_likelihood - posterior_reach(x_unit.shape[1])
+                )
+                hunt_over = hunt_over or fruitless
+                hunting = not hunt_over
+                continue  # refit with the hunt's evaluations; hunt again, or detect basins
             hunting = False
         found = secondary_basins(
             x_unit, y, surrogate, settings.radius, settings.depth, explored, ascent=ascent
@@ -441,7 +462,7 @@ def basin_phase(
         explored = np.vstack([explored, report.start[None], report.end[None]])
         climbs.append(report)
         climbed += 1
-        hunting = settings.hunt_beta > 0.0  # a climb may have confirmed a second mode
+        hunting = settings.hunt_beta > 0.0 and not hunt_over  # a climb may confirm a mode
     return BasinPhase(climbs, most_peaks)
 
 

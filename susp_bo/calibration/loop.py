@@ -10,7 +10,8 @@
       evaluated points that head basins of the surrogate other than the best point's
       (:mod:`.basin_search`: modes EGO saw only at their fringe), up to
       ``basin.budget_fraction`` of the evaluations left; nothing when there is none;
-      with ``basin.hunt_beta`` > 0 (opt-in), where the surrogate has two confirmed peaks
+      with ``basin.hunt_beta`` > 0 (3, the default since session 43) on a global search
+      with fixed noise, where the surrogate has two confirmed peaks when the phase starts
       it also hunts, at the maxima of its upper bound, for modes no evaluation came near
       (:mod:`.mode_hunt`); where the phase counts two or more confirmed peaks (several
       modes met) on a global search with fixed noise, the rest of the refinement runs
@@ -340,9 +341,16 @@ def calibrate(
         if settings.basin_search and not basins_done and phase == "refine":
             basins_done = True
             n_before = x.shape[0]
+            basin_settings = settings
+            if settings.basin.hunt_beta > 0 and not settings.global_fixed_noise_search(wants_local):
+                # the hunt is for a search over C_w with a fixed noise (a noisy log L's bumps
+                # are confirmed too easily; a local phase or trust region looks near one mode)
+                basin = dataclasses.replace(settings.basin, hunt_beta=0.0)
+                basin_settings = dataclasses.replace(settings, basin=basin)
             x, y, iteration, new_climbs, peaks = run_basin_phase(
-                evaluate, b, x, y, main_budget, iteration, settings, history, on_iteration, bar
-            )
+                evaluate, b, x, y, main_budget, iteration, basin_settings, history, on_iteration,
+                bar,
+            )  # fmt: skip
             climbs.extend(new_climbs)
             kappa = settings.modes_refine_optimism
             if (

@@ -137,7 +137,9 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
         allow_small_budget=config.budget.allow_small,
         local_search=config.search.local,
         basin_search=config.search.basins,
-        basin=BasinSettings(hunt_beta=config.search.hunt),
+        basin=BasinSettings()
+        if config.search.hunt is None
+        else BasinSettings(hunt_beta=config.search.hunt),
         refine_optimism=config.search.refine_optimism,
         kernel_switch=config.search.kernel_switch,
         surrogate=SurrogateSettings(kernel=config.search.kernel),  # type: ignore[arg-type]

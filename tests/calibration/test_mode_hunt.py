@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -22,6 +24,13 @@ def two_modes(u: np.ndarray) -> np.ndarray:
     """Two equal Gaussian bumps in the unit square (nats)."""
     u = np.asarray(u)
     parts = [-0.5 * np.sum(((u - c) / SD) ** 2, axis=-1) for c in CENTRES[:2]]
+    return logsumexp(np.stack(parts), axis=0)
+
+
+def three_modes(u: np.ndarray) -> np.ndarray:
+    """Three equal Gaussian bumps in the unit square (nats); ``_data`` misses the third."""
+    u = np.asarray(u)
+    parts = [-0.5 * np.sum(((u - c) / SD) ** 2, axis=-1) for c in CENTRES]
     return logsumexp(np.stack(parts), axis=0)
 
 
@@ -138,8 +147,27 @@ def test_with_two_peaks_the_phase_hunts_first_within_its_share() -> None:
     for hunt in hunts:  # the report: from the best point to the batch's best
         assert hunt.start_log_likelihood == pytest.approx(float(_data(two_modes)[1].max()))
         assert hunt.end_log_likelihood == pytest.approx(float(two_modes(hunt.end[None])[0]))
-    off, off_calls = _phase(two_modes, BasinSettings().hunt_beta)  # off by default
+    # there is no third mode: the first batch lands below the posterior's reach of the best,
+    # and a fruitless batch ends the hunt (session 43; before, batches went on to the share)
+    assert len(hunts) == 1
+    assert hunts[0].end_log_likelihood < hunts[0].start_log_likelihood - posterior_reach(2)
+    assert BasinSettings().hunt_beta == 3.0  # on by default (session 43)
+    off, off_calls = _phase(two_modes, 0.0)  # without the hunt
     assert off == [] and off_calls == []  # both modes evaluated: nothing to climb
+
+
+def test_a_hunt_that_finds_a_mode_goes_on_until_a_batch_finds_nothing() -> None:
+    climbs, _ = _phase(three_modes, 12.0)
+    hunts = [c for c in climbs if c.stop_reason == "hunt"]
+    reach = posterior_reach(2)
+    # the first batch reaches the hidden mode's slope (within the reach of the best); the
+    # hunt goes on; the first batch below the reach ends it
+    assert hunts[0].end_log_likelihood >= hunts[0].start_log_likelihood - reach
+    fruitless = [h.end_log_likelihood < h.start_log_likelihood - reach for h in hunts]
+    assert fruitless[-1] and not any(fruitless[:-1])
+    # and the phase then climbs the mode the hunt found to its top
+    assert climbs[-1].stop_reason != "hunt" and climbs[-1].end_log_likelihood > -0.5
+    assert np.max(np.abs(climbs[-1].end - CENTRES[2])) < SD
 
 
 def test_a_mode_seen_only_at_its_fringe_is_climbed_not_hunted() -> None:
@@ -163,9 +191,69 @@ def test_a_mode_seen_only_at_its_fringe_is_climbed_not_hunted() -> None:
     assert climbs[0].end_log_likelihood > -0.5  # the climb reached the second mode's top
 
 
+def test_a_second_peak_that_only_a_climb_confirms_starts_no_hunt() -> None:
+    """One confirmed peak when the global search ended, and a climb that confirms a second
+    (a curved ridge's two ends look so): the phase does not hunt, and makes exactly the
+    evaluations it makes without the hunt (session 43: on the curved 5-D chain the hunt
+    then cost MMTV .024 -> .067)."""
+    x, _ = _data(three_modes)
+    x = np.vstack([x[:-8], CENTRES[1] + SD * np.array([[2.5, 0.0], [0.0, -2.5]])])
+    y = three_modes(x)
+    runs = {}
+    for beta in (12.0, 0.0):
+        calls: list[np.ndarray] = []
+
+        def evaluate(u: np.ndarray, calls: list[np.ndarray] = calls) -> np.ndarray:
+            calls.append(u.copy())
+            return three_modes(u)
+
+        settings = BasinSettings(hunt_beta=beta)
+        outcome = basin_phase(x, y, 40, 4, settings, _fit, evaluate, lambda: 5, 4, 128)
+        runs[beta] = (outcome, calls)
+    (hunted, calls_on), (plain, calls_off) = runs[12.0], runs[0.0]
+    assert hunted.climbs and hunted.climbs[0].end_log_likelihood > -0.5  # the climb confirms
+    assert hunted.confirmed_peaks >= 2  # a second peak, after the climb
+    assert all(c.stop_reason != "hunt" for c in hunted.climbs)
+    assert [c.stop_reason for c in hunted.climbs] == [c.stop_reason for c in plain.climbs]
+    assert len(calls_on) == len(calls_off)
+    for a, b in zip(calls_on, calls_off):
+        np.testing.assert_array_equal(a, b)
+
+
 @pytest.mark.parametrize(
     ("field", "value"), [("hunt_beta", -1.0), ("hunt_fraction", 0.0), ("hunt_fraction", 1.5)]
 )
 def test_bad_hunt_settings_are_refused(field: str, value: float) -> None:
     with pytest.raises(ValueError, match=field):
         BasinSettings(**{field: value})
+
+
+def test_calibrate_hunts_only_in_a_global_search_with_fixed_noise(monkeypatch) -> None:
+    """The hunt (on by default, session 43) reaches the basin phase of a search over C_w
+    with a fixed noise; with a trust region or a learned noise the phase runs without it,
+    as with the local phase (the demo's and the paired studies' path)."""
+    from susp_bo.calibration import loop
+    from susp_bo.calibration.loop import CalibrationSettings, calibrate
+    from susp_bo.calibration.test_functions import TARGETS
+
+    real = loop.run_basin_phase
+    seen: list[float] = []
+
+    def spy(*args, **kwargs):
+        seen.append(args[6].basin.hunt_beta)  # the settings the phase runs with
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loop, "run_basin_phase", spy)
+    target = TARGETS["banana_2d"]()
+    small = CalibrationSettings(max_evaluations=24, batch_size=4, mcmc_chains=8,
+                                mcmc_warmup=50, mcmc_samples=50, candidate_count=64,
+                                check_points=0)  # fmt: skip
+    runs = {
+        "global": small,
+        "trust region": replace(small, trust_region=True),
+        "learned noise": replace(small, surrogate=SurrogateSettings(noise="learned")),
+    }
+    for settings in runs.values():
+        assert settings.basin.hunt_beta == 3.0
+        calibrate(target, target.bounds, target.names, settings, progress=False)
+    assert seen == [3.0, 0.0, 0.0]

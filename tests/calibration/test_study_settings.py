@@ -27,17 +27,21 @@ def test_study_config_sections_reach_the_loop_settings() -> None:
     assert (settings.local_search, settings.basin_search) == (True, False)
     assert settings.refine_optimism == 2.0 and isinstance(settings.refine_optimism, float)
     assert settings.surrogate.kernel == "auto"
-    assert settings.basin == BasinSettings()  # no hunt unless asked for
+    assert settings.basin == BasinSettings()  # the API's default hunt (3) when omitted
 
 
 def test_the_hunt_reaches_the_basin_phase_and_nothing_else_changes() -> None:
     base = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"))
     hunting = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"),
-                          search=SearchConfig(hunt=3))  # fmt: skip
+                          search=SearchConfig(hunt=5))  # fmt: skip
     settings = calibration_settings(hunting)
-    assert settings.basin.hunt_beta == 3.0 and isinstance(settings.basin.hunt_beta, float)
-    assert settings.basin == dataclasses.replace(BasinSettings(), hunt_beta=3.0)
+    assert settings.basin.hunt_beta == 5.0 and isinstance(settings.basin.hunt_beta, float)
+    assert settings.basin == dataclasses.replace(BasinSettings(), hunt_beta=5.0)
     assert dataclasses.replace(settings, basin=BasinSettings()) == calibration_settings(base)
+    assert calibration_settings(base).basin.hunt_beta == 3.0  # omitted: the default
+    off = StudyConfig(rig="hst_trailer", data=Path("d"), out=Path("o"),
+                      search=SearchConfig(hunt=0))  # fmt: skip
+    assert calibration_settings(off).basin.hunt_beta == 0.0
 
 
 def test_default_search_section_keeps_the_loop_default_refinement() -> None:
