@@ -347,6 +347,10 @@ def calibrate(
                 # are confirmed too easily; a local phase or trust region looks near one mode)
                 basin = dataclasses.replace(settings.basin, hunt_beta=0.0)
                 basin_settings = dataclasses.replace(settings, basin=basin)
+                logger.debug(
+                    "basin search: no hunt for unseen modes (local phase, trust region or "
+                    "learned noise: the hunt is for a search over C_w with a fixed noise)"
+                )
             x, y, iteration, new_climbs, peaks = run_basin_phase(
                 evaluate, b, x, y, main_budget, iteration, basin_settings, history, on_iteration,
                 bar,
