@@ -352,7 +352,10 @@ class SearchConfig:
             value = getattr(self, name)
             if not isinstance(value, bool):
                 raise ValueError(f"search.{name}: {value!r} is not allowed; expected true or false")
-        for name, hint in (("refine_optimism", ""), ("hunt", " (0: no hunt; 3 measured)")):
+        for name, hint in (
+            ("refine_optimism", ""),
+            ("hunt", " (0: no hunt; omit it for the default, 3)"),
+        ):
             value = getattr(self, name)
             if value is None and name == "hunt":
                 continue  # the default

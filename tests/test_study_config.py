@@ -222,7 +222,7 @@ BAD_EDITS = [
     (
         "hunt = 0.0",
         "hunt = -3",
-        r"search\.hunt: -3 is not allowed; expected a finite number >= 0 \(0: no hunt; 3 mea",
+        r"search\.hunt: -3 is not allowed; expected a finite number >= 0 \(0: no hunt; omit it",
     ),
     ("hunt = 0.0", 'hunt = "yes"', r"search\.hunt: 'yes' is not allowed; expected a finite"),
     (
@@ -251,6 +251,7 @@ def test_a_hunt_without_the_basin_phase_is_refused(study_folder: Path) -> None:
     path = _example_with_rig_path(study_folder)
     text = path.read_text(encoding="utf-8")
     text = text.replace("basins = true", "basins = false", 1).replace("hunt = 0.0", "hunt = 3", 1)
+    text = text.replace("local = true", "local = false", 1)  # only the basins rule is broken
     path.write_text(text, encoding="utf-8")
     message = r"search: hunt = 3 and basins = false are not allowed together; the hunt is part of"
     with pytest.raises(ValueError, match=message) as raised:

@@ -382,8 +382,9 @@ def basin_phase(
     hunt needs two confirmed peaks in the first round (when the global search ended: peaks
     that only climbs confirm are the ends of a ridge they followed, as on a curved
     posterior), and ends for the phase at the first batch whose best point falls below the
-    posterior's reach of the best value (:func:`.trust_region.posterior_reach`): the
-    upper bounds it followed were empty. With one confirmed peak in the first round, the
+    posterior's reach of the best value (:func:`.trust_region.posterior_reach`), or has no
+    finite value: the upper bounds it followed were empty. With one confirmed peak in the
+    first round, the
     phase is what it was without the hunt, bit for bit.
 
     Args:
@@ -403,7 +404,7 @@ def basin_phase(
     climbs: list[ClimbReport] = []
     used = 0
     hunting = settings.hunt_beta > 0.0
-    hunt_over = False  # a fruitless hunt batch ends the hunting for the phase
+    hunt_over = False  # no hunt for the rest of the phase: one peak at first, or a fruitless batch
     hunt_left = int(settings.hunt_fraction * budget)  # the hunts' share; climbs do not use it up
     climbed = 0
     while used < budget and climbed < settings.max_basins:

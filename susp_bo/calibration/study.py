@@ -146,6 +146,18 @@ def calibration_settings(config: StudyConfig) -> CalibrationSettings:
     )
 
 
+def config_as_run(config: StudyConfig) -> StudyConfig:
+    """``config`` with ``[search] hunt`` written out as the run uses it: omitted, the
+    default β (:class:`BasinSettings`) where the hunt can run (``basins = true``, ``local
+    = false``) and 0 where it cannot. The results folder's ``study.toml`` then records the
+    β its run used, whatever a later default becomes."""
+    search = config.search
+    if search.hunt is not None:
+        return config
+    hunt = BasinSettings().hunt_beta if search.basins and not search.local else 0.0
+    return dataclasses.replace(config, search=dataclasses.replace(search, hunt=hunt))
+
+
 def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float] | None:
     """(mean, sd) of log L at the true parameters expected under the output-error model B.
 
@@ -383,7 +395,7 @@ def run_study(
                 held.enter_context(hold_output_folder(out))
             except OutputFolderBusy as error:
                 raise StudyError(str(error)) from None
-            (out / CONFIG_NAME).write_text(config.with_absolute_paths().to_toml())
+            (out / CONFIG_NAME).write_text(config_as_run(config).with_absolute_paths().to_toml())
             log = _logger(out)
             log.info(
                 "study %s: rig %s, %d runs, parameters %s",

@@ -10,6 +10,7 @@ import torch
 from scipy.special import logsumexp
 from scipy.stats import qmc
 
+from susp_bo.calibration import basin_search
 from susp_bo.calibration.basin_search import BasinSettings, ascent_ends, basin_phase
 from susp_bo.calibration.mode_hunt import hunt_batch, surrogate_peaks
 from susp_bo.calibration.surrogate import Surrogate, SurrogateSettings
@@ -147,13 +148,40 @@ def test_with_two_peaks_the_phase_hunts_first_within_its_share() -> None:
     for hunt in hunts:  # the report: from the best point to the batch's best
         assert hunt.start_log_likelihood == pytest.approx(float(_data(two_modes)[1].max()))
         assert hunt.end_log_likelihood == pytest.approx(float(two_modes(hunt.end[None])[0]))
-    # there is no third mode: the first batch lands below the posterior's reach of the best,
-    # and a fruitless batch ends the hunt (session 43; before, batches went on to the share)
+    # there is no third mode: the first batch lands below the posterior's reach of the best
     assert len(hunts) == 1
     assert hunts[0].end_log_likelihood < hunts[0].start_log_likelihood - posterior_reach(2)
     assert BasinSettings().hunt_beta == 3.0  # on by default (session 43)
     off, off_calls = _phase(two_modes, 0.0)  # without the hunt
     assert off == [] and off_calls == []  # both modes evaluated: nothing to climb
+
+
+@pytest.mark.parametrize("batch_best", ["real", "found", "nan"])
+def test_a_fruitless_hunt_batch_ends_the_hunt(monkeypatch, batch_best: str) -> None:
+    """Session 43: the first batch with nothing within the posterior's reach of the best
+    (or nothing finite) ends the hunt. With a wide bound (beta 50) on two modes and no third,
+    the batches would go on to the hunts' share if each had found something."""
+    real = basin_search._hunt
+    batches: list[int] = []
+
+    def recorded(*args, **kwargs):
+        x, y, report = real(*args, **kwargs)
+        if report is not None:
+            batches.append(report.n_evaluations)
+            if batch_best != "real":  # what the phase is told the batch's best was
+                end = report.start_log_likelihood if batch_best == "found" else float("nan")
+                report = replace(report, end_log_likelihood=end)
+        return x, y, report
+
+    monkeypatch.setattr(basin_search, "_hunt", recorded)
+    climbs, _ = _phase(two_modes, 50.0)
+    hunts = [c for c in climbs if c.stop_reason == "hunt"]
+    if batch_best == "found":
+        assert len(batches) >= 3 and sum(batches) <= int(BasinSettings().hunt_fraction * 24)
+    else:
+        assert len(batches) == len(hunts) == 1
+    if batch_best == "real":
+        assert hunts[0].end_log_likelihood < hunts[0].start_log_likelihood - posterior_reach(2)
 
 
 def test_a_hunt_that_finds_a_mode_goes_on_until_a_batch_finds_nothing() -> None:

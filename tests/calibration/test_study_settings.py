@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
+import tomllib
 from pathlib import Path
+
+import pytest
 
 from susp_bo.calibration.basin_search import BasinSettings
 from susp_bo.calibration.settings import CalibrationSettings
-from susp_bo.calibration.study import calibration_settings
-from susp_bo.study_config import BudgetConfig, SearchConfig, SeedsConfig, StudyConfig
+from susp_bo.calibration.study import calibration_settings, config_as_run
+from susp_bo.study_config import (
+    BudgetConfig,
+    SearchConfig,
+    SeedsConfig,
+    StudyConfig,
+    parse_study_config,
+)
 
 
 def test_study_config_sections_reach_the_loop_settings() -> None:
@@ -49,3 +58,23 @@ def test_default_search_section_keeps_the_loop_default_refinement() -> None:
     assert calibration_settings(config).refine_optimism == CalibrationSettings().refine_optimism
     assert calibration_settings(config).surrogate == CalibrationSettings().surrogate
     assert calibration_settings(config).basin == CalibrationSettings().basin
+
+
+@pytest.mark.parametrize(
+    ("search", "written"),
+    [({}, 3.0), ({"local": True}, 0.0), ({"basins": False}, 0.0), ({"hunt": 5}, 5.0),
+     ({"local": True, "hunt": 0}, 0.0)],
+)  # fmt: skip
+def test_the_results_folder_records_the_hunt_the_run_used(
+    search: dict, written: float, tmp_path: Path
+) -> None:
+    """An omitted hunt is written out as the run used it (reviewer, session 43), and the
+    written config loads back with the same settings."""
+    config = StudyConfig(rig="hst_trailer", data=tmp_path, out=tmp_path / "o",
+                         search=SearchConfig(**search))  # fmt: skip
+    ran = config_as_run(config)
+    assert ran.search.hunt == written
+    assert dataclasses.replace(ran.search, hunt=config.search.hunt) == config.search
+    again = parse_study_config(tomllib.loads(ran.to_toml()), Path.cwd())
+    assert again.search == ran.search
+    assert calibration_settings(ran).basin.hunt_beta == written
