@@ -384,8 +384,7 @@ def basin_phase(
     posterior), and ends for the phase at the first batch whose best point falls below the
     posterior's reach of the best value (:func:`.trust_region.posterior_reach`), or has no
     finite value: the upper bounds it followed were empty. With one confirmed peak in the
-    first round, the
-    phase is what it was without the hunt, bit for bit.
+    first round, the phase is what it was without the hunt, bit for bit.
 
     Args:
         x_unit: (n x q) evaluated points, unit cube of C_w; y: (n,) their log L.

@@ -151,11 +151,12 @@ def config_as_run(config: StudyConfig) -> StudyConfig:
     default β (:class:`BasinSettings`) where the hunt can run (``basins = true``, ``local
     = false``) and 0 where it cannot. The results folder's ``study.toml`` then records the
     β its run used, whatever a later default becomes."""
-    search = config.search
-    if search.hunt is not None:
+    if config.search.hunt is not None:
         return config
-    hunt = BasinSettings().hunt_beta if search.basins and not search.local else 0.0
-    return dataclasses.replace(config, search=dataclasses.replace(search, hunt=hunt))
+    settings = calibration_settings(config)
+    runs = settings.basin_search and settings.global_fixed_noise_search(settings.local_search)
+    hunt = settings.basin.hunt_beta if runs else 0.0
+    return dataclasses.replace(config, search=dataclasses.replace(config.search, hunt=hunt))
 
 
 def expected_log_likelihood_at_truth(study: PreparedStudy) -> tuple[float, float] | None:
